@@ -1,0 +1,84 @@
+//! Thrust–velocity characteristic: steady-state model and time-domain plant side by side.
+
+use crate::params::Params;
+use crate::plant::steady_speed_m_s;
+use crate::steady::{OperatingPoint, ThrustModel};
+use serde::Serialize;
+
+#[derive(Debug, Clone, Serialize)]
+pub struct CurvePoint {
+    pub load_n: f64,
+    pub speed_mm_s_model: f64,
+    pub speed_mm_s_sim: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Curve {
+    pub preload_n: f64,
+    pub voltage_v: f64,
+    pub frequency_hz: f64,
+    pub direction: i8,
+    pub stall_force_n: f64,
+    pub no_load_speed_mm_s: f64,
+    pub contact_angle_rad: f64,
+    pub full_contact: bool,
+    pub contact_force_amplitude_n: f64,
+    pub foot_peak_speed_mm_s: f64,
+    pub points: Vec<CurvePoint>,
+    /// Dense model curve for plotting: (load N, speed mm/s).
+    #[serde(skip)]
+    pub model_line: Vec<(f64, f64)>,
+}
+
+/// Loads from 0 to `max_fraction` of stall in `points` steps; `progress` is told each finished point.
+pub fn compute(
+    p: &Params,
+    op: OperatingPoint,
+    direction: i8,
+    points: usize,
+    max_fraction: f64,
+    mut progress: impl FnMut(usize, usize),
+) -> Curve {
+    let m = ThrustModel::new(p, op);
+    let stall = m.stall_force_n();
+    let n = points.max(2);
+    let mut pts = Vec::with_capacity(n);
+    for i in 0..n {
+        let load_n = stall * max_fraction * i as f64 / (n - 1) as f64;
+        let model = m.speed_at_load_m_s(load_n).unwrap_or(f64::NAN) * 1e3;
+        let sim = steady_speed_m_s(
+            p,
+            op.preload_n,
+            op.voltage_v,
+            op.frequency_hz,
+            direction,
+            load_n,
+        ) * 1e3;
+        pts.push(CurvePoint {
+            load_n,
+            speed_mm_s_model: model,
+            speed_mm_s_sim: sim,
+        });
+        progress(i + 1, n);
+    }
+    let model_line = (0..=100)
+        .map(|i| {
+            let load = stall * i as f64 / 100.0;
+            (load, m.speed_at_load_m_s(load).unwrap_or(0.0) * 1e3)
+        })
+        .collect();
+    Curve {
+        preload_n: op.preload_n,
+        voltage_v: op.voltage_v,
+        frequency_hz: op.frequency_hz,
+        direction,
+        stall_force_n: stall,
+        no_load_speed_mm_s: m.no_load_speed_m_s() * 1e3,
+        contact_angle_rad: m.contact_angle_rad,
+        full_contact: m.full_contact(),
+        contact_force_amplitude_n: m.kc_yc_n,
+        foot_peak_speed_mm_s: m.foot_speed_m_s * 1e3,
+        points: pts,
+        model_line,
+    }
+}

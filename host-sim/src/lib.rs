@@ -1,0 +1,8 @@
+//! host-sim: the physical plant of the shaking-beam piezo motor, its steady-state thrust model,
+//! and the command-line tools around them.
+pub mod curve;
+pub mod paper;
+pub mod params;
+pub mod plant;
+pub mod plot;
+pub mod steady;

@@ -1,0 +1,251 @@
+//! `host-sim`: the motor on your desk. See `host-sim --help`.
+
+use anyhow::{bail, Result};
+use clap::{Parser, Subcommand};
+use host_sim::params::{FrictionModel, Params};
+use host_sim::steady::OperatingPoint;
+use host_sim::{curve, paper, plot};
+use std::io::Write;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Parser)]
+#[command(
+    name = "host-sim",
+    version,
+    about = "Simulator of the non-resonant shaking-beam piezo motor"
+)]
+struct Cli {
+    /// Parameter file (TOML); the compiled-in prototype set when absent.
+    #[arg(long, global = true, value_name = "FILE")]
+    params: Option<PathBuf>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Thrust–velocity characteristic: steady-state model and time-domain plant side by side.
+    Curve {
+        #[command(flatten)]
+        point: PointArgs,
+        /// Number of load points from 0 to 90 % of stall.
+        #[arg(long, default_value_t = 8)]
+        points: usize,
+        /// Friction law of the time-domain plant.
+        #[arg(long, value_enum)]
+        friction: Option<FrictionModel>,
+        /// Print one JSON object instead of the table.
+        #[arg(long)]
+        json: bool,
+        /// Also draw the curve to this SVG file.
+        #[arg(long, value_name = "FILE.svg")]
+        plot: Option<PathBuf>,
+    },
+    /// The paper's figures (physics.md §5): theirs, ours, the band we hold, pass/fail.
+    Paper {
+        #[arg(long)]
+        json: bool,
+    },
+    /// The main job: the prototype's thrust–velocity characteristic at the paper's test point,
+    /// printed as a table and drawn to demo.svg.
+    Demo {
+        #[arg(long, value_name = "FILE.svg", default_value = "demo.svg")]
+        plot: PathBuf,
+    },
+}
+
+#[derive(clap::Args)]
+struct PointArgs {
+    /// Preload force F0 (N).
+    #[arg(long, default_value_t = 16.0, allow_negative_numbers = true)]
+    preload_n: f64,
+    /// Peak-to-peak stack voltage (V); 100 = the full 0–100 V swing.
+    #[arg(long, default_value_t = 100.0, allow_negative_numbers = true)]
+    voltage_v: f64,
+    /// Drive frequency (Hz).
+    #[arg(long, default_value_t = 1500.0, allow_negative_numbers = true)]
+    frequency_hz: f64,
+    /// Drive direction: +1 or -1 (sign of the quarter-period shift).
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+    direction: i8,
+}
+
+impl PointArgs {
+    fn validate(&self, p: &Params) -> Result<OperatingPoint> {
+        let range = p.amplifier.output_max_v - p.amplifier.output_min_v;
+        if !(self.preload_n.is_finite() && self.preload_n > 0.0) {
+            bail!(
+                "--preload-n must be a positive force in newtons, got {}",
+                self.preload_n
+            );
+        }
+        if !(self.voltage_v.is_finite() && self.voltage_v > 0.0 && self.voltage_v <= range) {
+            bail!(
+                "--voltage-v must be in (0, {range}] V (the amplifier range), got {}",
+                self.voltage_v
+            );
+        }
+        if !(self.frequency_hz.is_finite()
+            && self.frequency_hz > 0.0
+            && self.frequency_hz <= 0.1 * p.amplifier.dac_rate_hz)
+        {
+            bail!(
+                "--frequency-hz must be in (0, {}] Hz (a tenth of the DAC rate), got {}",
+                0.1 * p.amplifier.dac_rate_hz,
+                self.frequency_hz
+            );
+        }
+        if self.direction != 1 && self.direction != -1 {
+            bail!("--direction must be 1 or -1, got {}", self.direction);
+        }
+        Ok(OperatingPoint {
+            preload_n: self.preload_n,
+            voltage_v: self.voltage_v,
+            frequency_hz: self.frequency_hz,
+        })
+    }
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            use clap::error::ErrorKind;
+            if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+                let _ = e.print();
+                return ExitCode::SUCCESS;
+            }
+            if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
+                let _ = e.print();
+                return ExitCode::from(2);
+            }
+            // One line: clap's first line, without the usage block.
+            let text = e.to_string();
+            let first = text.lines().next().unwrap_or("invalid arguments");
+            eprintln!("{first} (see host-sim --help)");
+            return ExitCode::from(2);
+        }
+    };
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            // `{:#}` joins the context chain on one line.
+            eprintln!("error: {e:#}");
+            ExitCode::from(1)
+        }
+    }
+}
+
+fn progress(label: &str) -> impl FnMut(usize, usize) + '_ {
+    move |done, total| {
+        let mut err = std::io::stderr();
+        let _ = write!(err, "\r{label}: {done}/{total} points simulated");
+        if done == total {
+            let _ = writeln!(err);
+        }
+        let _ = err.flush();
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    let mut params = match &cli.params {
+        Some(path) => Params::load(path)?,
+        None => Params::prototype(),
+    };
+    match cli.command {
+        Command::Curve {
+            point,
+            points,
+            friction,
+            json,
+            plot: plot_path,
+        } => {
+            let op = point.validate(&params)?;
+            if !(2..=200).contains(&points) {
+                bail!("--points must be 2..=200, got {points}");
+            }
+            if let Some(model) = friction {
+                params.friction.model = model;
+            }
+            let c = curve::compute(&params, op, point.direction, points, 0.9, progress("curve"));
+            if let Some(path) = &plot_path {
+                plot::thrust_velocity(&c, path)?;
+            }
+            if json {
+                println!("{}", serde_json::to_string_pretty(&c)?);
+            } else {
+                print_curve(&c);
+                if let Some(path) = &plot_path {
+                    println!("plot written to {}", path.display());
+                }
+            }
+        }
+        Command::Paper { json } => {
+            let rows = paper::rows(&params);
+            if json {
+                println!("{}", serde_json::to_string_pretty(&rows)?);
+            } else {
+                println!(
+                    "{:<30} {:<34} {:>10} {:<6} {:<36} result",
+                    "figure", "paper", "ours", "unit", "we hold"
+                );
+                for r in &rows {
+                    println!(
+                        "{:<30} {:<34} {:>10.3} {:<6} {:<36} {}",
+                        r.name,
+                        r.paper,
+                        r.ours,
+                        r.unit,
+                        r.tolerance,
+                        if r.pass { "pass" } else { "FAIL" }
+                    );
+                }
+                let failed = rows.iter().filter(|r| !r.pass).count();
+                println!("{} of {} rows pass", rows.len() - failed, rows.len());
+            }
+        }
+        Command::Demo { plot: plot_path } => {
+            let op = OperatingPoint {
+                preload_n: 16.0,
+                voltage_v: 100.0,
+                frequency_hz: 1500.0,
+            };
+            println!("Shaking-beam piezo motor, prototype parameters: thrust–velocity at the paper's test point");
+            let c = curve::compute(&params, op, 1, 8, 0.9, progress("demo"));
+            print_curve(&c);
+            plot::thrust_velocity(&c, &plot_path)?;
+            println!("plot written to {}", plot_path.display());
+        }
+    }
+    Ok(())
+}
+
+fn print_curve(c: &curve::Curve) {
+    println!(
+        "F0 {} N, {} V p-p, {} Hz, direction {:+}: contact force amplitude kc·Yc {:.2} N, contact angle {:.3} rad{}",
+        c.preload_n,
+        c.voltage_v,
+        c.frequency_hz,
+        c.direction,
+        c.contact_force_amplitude_n,
+        c.contact_angle_rad,
+        if c.full_contact { " (full contact)" } else { "" }
+    );
+    println!(
+        "stall force {:.3} N, no-load speed {:.3} mm/s, foot peak speed {:.3} mm/s",
+        c.stall_force_n, c.no_load_speed_mm_s, c.foot_peak_speed_mm_s
+    );
+    println!(
+        "{:>10} {:>16} {:>16} {:>9}",
+        "load N", "model mm/s", "plant mm/s", "diff %"
+    );
+    for p in &c.points {
+        let diff =
+            100.0 * (p.speed_mm_s_sim - p.speed_mm_s_model) / p.speed_mm_s_model.abs().max(1e-9);
+        println!(
+            "{:>10.3} {:>16.4} {:>16.4} {:>9.2}",
+            p.load_n, p.speed_mm_s_model, p.speed_mm_s_sim, diff
+        );
+    }
+}

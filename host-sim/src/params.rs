@@ -1,0 +1,246 @@
+//! The motor's physical parameters: one place, SI units in every name.
+//!
+//! The default set (`params/prototype.toml`, compiled in) describes the prototype of the
+//! shaking-beam paper. Any other set is loaded with `--params FILE`; every field is required so a
+//! typo cannot silently fall back to a default.
+
+use anyhow::{bail, Context, Result};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// The prototype parameter set shipped with the project.
+pub const PROTOTYPE_TOML: &str = include_str!("../params/prototype.toml");
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Params {
+    pub stack: Stack,
+    pub amplifier: Amplifier,
+    pub stator: Stator,
+    pub contact: Contact,
+    pub friction: Friction,
+    pub slider: Slider,
+    pub sensors: Sensors,
+    pub integrator: Integrator,
+}
+
+/// Piezo stacks (PL055.30 in the prototype).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Stack {
+    /// Free stroke per volt (2.2 µm at 100 V).
+    pub stroke_m_per_v: f64,
+    /// Effective stack stiffness `kT` in the assembly; the stack force is `kT · stroke` (eq. 3).
+    pub stiffness_n_per_m: f64,
+}
+
+/// The two-channel high-voltage amplifier between DAC and stacks.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Amplifier {
+    pub output_min_v: f64,
+    pub output_max_v: f64,
+    /// First-order small-signal bandwidth driving the stack capacitance.
+    pub bandwidth_hz: f64,
+    /// DAC update rate; the amplifier sees a zero-order hold at this rate.
+    pub dac_rate_hz: f64,
+}
+
+/// Stator normal dynamics, eqs. (1)–(7): foot `m1`, counterweight `m2`, `k1 = kT + kS`, preload `k2`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Stator {
+    pub foot_mass_kg: f64,
+    pub counterweight_mass_kg: f64,
+    /// Flexure stiffness `kS`; `k1 = kT + kS`.
+    pub flexure_stiffness_n_per_m: f64,
+    pub preload_spring_n_per_m: f64,
+    /// ρ = ρ' of eq. (3): share of each stack force that acts normal to the slider.
+    pub normal_force_ratio: f64,
+    /// λ of eq. (1): tangential foot displacement per metre of summed stack stroke.
+    pub tangential_scale: f64,
+    /// Damping ratio of the stator's structural modes (across `k1` and `k2`).
+    pub damping_ratio: f64,
+}
+
+/// Foot/slider normal contact, eq. (10).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Contact {
+    /// `kc = k3 = Ec·Ac/hc` (ceramic 2e9, 45 steel 1e9, epoxy 5e8 N/m).
+    pub stiffness_n_per_m: f64,
+    /// Damping ratio of the foot on the contact spring (Kelvin–Voigt, unilateral).
+    pub damping_ratio: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "snake_case")]
+pub enum FrictionModel {
+    /// Seed eq. (16): Coulomb with μd and a viscous part εc; stick solved exactly.
+    Coulomb,
+    /// Stick holds up to μs·Fc, slip at μd·Fc (interface paper, Fig. 1b).
+    StaticDynamic,
+    /// LuGre bristle model (interface paper, Fig. 1d).
+    Lugre,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Friction {
+    pub model: FrictionModel,
+    /// μd: sliding friction coefficient.
+    pub mu_dynamic: f64,
+    /// μs: sticking limit (static/dynamic and LuGre's Stribeck peak).
+    pub mu_static: f64,
+    /// εc of eq. (16).
+    pub viscous_n_s_per_m: f64,
+    /// LuGre σ0 per newton of normal force.
+    pub lugre_bristle_stiffness_per_m: f64,
+    /// LuGre σ1 per newton of normal force.
+    pub lugre_bristle_damping_s_per_m: f64,
+    /// LuGre Stribeck speed.
+    pub lugre_stribeck_speed_m_s: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Slider {
+    /// Moving mass, carriage plus what hangs on it.
+    pub mass_kg: f64,
+    /// Viscous drag of the guide.
+    pub damping_n_s_per_m: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Sensors {
+    pub encoder_resolution_m: f64,
+    pub force_cell_full_scale_n: f64,
+    pub force_cell_adc_bits: u32,
+    pub force_cell_noise_n: f64,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Integrator {
+    /// Fixed plant step.
+    pub step_s: f64,
+}
+
+impl Params {
+    pub fn prototype() -> Self {
+        // The shipped file is checked by a test; failing here would be a build defect.
+        Self::from_toml(PROTOTYPE_TOML).expect("params/prototype.toml is valid")
+    }
+
+    pub fn from_toml(text: &str) -> Result<Self> {
+        let p: Params = toml::from_str(text).context("parameter file does not match the schema")?;
+        p.validate()?;
+        Ok(p)
+    }
+
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read parameter file {}", path.display()))?;
+        Self::from_toml(&text).with_context(|| format!("in {}", path.display()))
+    }
+
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).unwrap_or_default()
+    }
+
+    /// Rejects values that make the physics meaningless (negative masses, zero stiffness, ...).
+    pub fn validate(&self) -> Result<()> {
+        let positive = [
+            ("stack.stroke_m_per_v", self.stack.stroke_m_per_v),
+            ("stack.stiffness_n_per_m", self.stack.stiffness_n_per_m),
+            ("amplifier.bandwidth_hz", self.amplifier.bandwidth_hz),
+            ("amplifier.dac_rate_hz", self.amplifier.dac_rate_hz),
+            ("stator.foot_mass_kg", self.stator.foot_mass_kg),
+            (
+                "stator.counterweight_mass_kg",
+                self.stator.counterweight_mass_kg,
+            ),
+            (
+                "stator.preload_spring_n_per_m",
+                self.stator.preload_spring_n_per_m,
+            ),
+            ("stator.normal_force_ratio", self.stator.normal_force_ratio),
+            ("stator.tangential_scale", self.stator.tangential_scale),
+            ("contact.stiffness_n_per_m", self.contact.stiffness_n_per_m),
+            ("friction.mu_dynamic", self.friction.mu_dynamic),
+            (
+                "friction.lugre_bristle_stiffness_per_m",
+                self.friction.lugre_bristle_stiffness_per_m,
+            ),
+            (
+                "friction.lugre_stribeck_speed_m_s",
+                self.friction.lugre_stribeck_speed_m_s,
+            ),
+            ("slider.mass_kg", self.slider.mass_kg),
+            (
+                "sensors.encoder_resolution_m",
+                self.sensors.encoder_resolution_m,
+            ),
+            (
+                "sensors.force_cell_full_scale_n",
+                self.sensors.force_cell_full_scale_n,
+            ),
+            ("integrator.step_s", self.integrator.step_s),
+        ];
+        for (name, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                bail!("{name} must be a positive number, got {v}");
+            }
+        }
+        let non_negative = [
+            (
+                "stator.flexure_stiffness_n_per_m",
+                self.stator.flexure_stiffness_n_per_m,
+            ),
+            ("stator.damping_ratio", self.stator.damping_ratio),
+            ("contact.damping_ratio", self.contact.damping_ratio),
+            (
+                "friction.viscous_n_s_per_m",
+                self.friction.viscous_n_s_per_m,
+            ),
+            (
+                "friction.lugre_bristle_damping_s_per_m",
+                self.friction.lugre_bristle_damping_s_per_m,
+            ),
+            ("slider.damping_n_s_per_m", self.slider.damping_n_s_per_m),
+            (
+                "sensors.force_cell_noise_n",
+                self.sensors.force_cell_noise_n,
+            ),
+        ];
+        for (name, v) in non_negative {
+            if !(v.is_finite() && v >= 0.0) {
+                bail!("{name} must be zero or positive, got {v}");
+            }
+        }
+        if self.friction.mu_static < self.friction.mu_dynamic {
+            bail!("friction.mu_static must be at least friction.mu_dynamic");
+        }
+        if !(self.amplifier.output_max_v > self.amplifier.output_min_v) {
+            bail!("amplifier.output_max_v must exceed amplifier.output_min_v");
+        }
+        if !(1..=24).contains(&self.sensors.force_cell_adc_bits) {
+            bail!("sensors.force_cell_adc_bits must be 1..=24");
+        }
+        if self.integrator.step_s > 1e-4 {
+            bail!("integrator.step_s above 100 µs cannot resolve the drive period");
+        }
+        Ok(())
+    }
+
+    /// `k1 = kT + kS` (paper §2.1).
+    pub fn k1_n_per_m(&self) -> f64 {
+        self.stack.stiffness_n_per_m + self.stator.flexure_stiffness_n_per_m
+    }
+
+    /// Mid-range voltage: the sine drive swings around it.
+    pub fn amplifier_mid_v(&self) -> f64 {
+        0.5 * (self.amplifier.output_min_v + self.amplifier.output_max_v)
+    }
+}

@@ -1,0 +1,492 @@
+//! Time-domain plant: DAC → amplifier → stacks → 2-DOF stator with unilateral contact → friction →
+//! slider, plus the sensors the firmware reads.
+//!
+//! Integration. The stator's normal dynamics are linear in each contact state (eqs. 4 and 6), so
+//! each step uses the exact discrete transition (matrix exponential, zero-order hold on the drive
+//! force) of the active state; a step in which the state changes is halved until the switch is
+//! located to `step/2^10`. This handles `kc` up to 2e9 N/m without a tiny step. The slider uses a
+//! velocity-level implicit friction law (stick solved exactly), so sticking never chatters.
+
+use crate::params::{FrictionModel, Params};
+use crate::steady::amplifier_stage_tau_s;
+use nalgebra::SMatrix;
+use rand::Rng;
+use rand_distr::StandardNormal;
+
+/// Refinement levels for locating contact switches inside a step.
+const SWITCH_LEVELS: usize = 10;
+
+/// External force on the slider along +x: a constant (hanging weight) plus an optional spring.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ExternalLoad {
+    pub constant_n: f64,
+    pub spring_n_per_m: f64,
+    pub spring_anchor_m: f64,
+}
+
+impl ExternalLoad {
+    /// A hanging weight of `force_n` that opposes motion in `direction` (+1 or −1).
+    pub fn opposing(force_n: f64, direction: i8) -> Self {
+        ExternalLoad {
+            constant_n: -force_n * f64::from(direction.signum()),
+            ..Default::default()
+        }
+    }
+    fn force_n(&self, position_m: f64) -> f64 {
+        self.constant_n - self.spring_n_per_m * (position_m - self.spring_anchor_m)
+    }
+}
+
+/// Exact discrete transition of one contact state over one sub-step.
+#[derive(Clone, Copy)]
+struct Transition {
+    phi: [[f64; 4]; 4],
+    /// Columns: response to the drive force and to the constant preload-anchor term.
+    gamma: [[f64; 2]; 4],
+}
+
+impl Transition {
+    fn apply(&self, x: &[f64; 4], drive_n: f64, anchor_force_n: f64) -> [f64; 4] {
+        let mut out = [0.0; 4];
+        for (i, o) in out.iter_mut().enumerate() {
+            let r = &self.phi[i];
+            *o = r[0] * x[0]
+                + r[1] * x[1]
+                + r[2] * x[2]
+                + r[3] * x[3]
+                + self.gamma[i][0] * drive_n
+                + self.gamma[i][1] * anchor_force_n;
+        }
+        out
+    }
+}
+
+pub struct Plant {
+    p: Params,
+    dt_s: f64,
+    time_s: f64,
+    // Stator normal state: foot y1, v1, counterweight y2, v2 (m, m/s); +y presses into the slider,
+    // whose surface is at y1 = 0.
+    x: [f64; 4],
+    anchor_m: f64,
+    /// [contact state][level]
+    transitions: [[Transition; SWITCH_LEVELS + 1]; 2],
+    k_contact: f64,
+    c_contact: f64,
+    // Amplifier: two cascaded poles per channel.
+    tau_s: f64,
+    decay_full: f64,
+    decay_half: f64,
+    amp_a_v: [f64; 2],
+    amp_b_v: [f64; 2],
+    dac_hold_v: [f64; 2],
+    next_dac_s: f64,
+    dac_period_s: f64,
+    // Slider.
+    pub load: ExternalLoad,
+    slider_x_m: f64,
+    slider_v_m_s: f64,
+    bristle_m: f64,
+    friction_model: FrictionModel,
+    // Last step's outputs.
+    contact_force_n: f64,
+    friction_force_n: f64,
+    foot_speed_m_s: f64,
+    drive_off: bool,
+}
+
+/// Something that produces the two DAC output voltages (at the amplifier output) at time `t`.
+pub trait DriveSource {
+    fn volts(&mut self, time_s: f64) -> [f64; 2];
+}
+
+impl<F: FnMut(f64) -> [f64; 2]> DriveSource for F {
+    fn volts(&mut self, time_s: f64) -> [f64; 2] {
+        self(time_s)
+    }
+}
+
+/// An ideal quadrature sine: both channels swing `voltage_v` peak-to-peak around mid-range,
+/// channel 2 a quarter period behind channel 1 for `direction = +1` (ahead for −1).
+#[derive(Debug, Clone, Copy)]
+pub struct QuadratureSine {
+    pub voltage_v: f64,
+    pub frequency_hz: f64,
+    pub direction: i8,
+    pub mid_v: f64,
+    /// Amplitude ramps up linearly over this time so the stator starts without a shock.
+    pub ramp_s: f64,
+}
+
+impl DriveSource for QuadratureSine {
+    fn volts(&mut self, t: f64) -> [f64; 2] {
+        let ramp = if self.ramp_s > 0.0 {
+            (t / self.ramp_s).min(1.0)
+        } else {
+            1.0
+        };
+        let a = 0.5 * self.voltage_v * ramp;
+        let ph = std::f64::consts::TAU * self.frequency_hz * t;
+        let lag = std::f64::consts::FRAC_PI_2 * f64::from(self.direction.signum());
+        [self.mid_v + a * ph.sin(), self.mid_v + a * (ph - lag).sin()]
+    }
+}
+
+impl Plant {
+    /// A plant at rest: preload `preload_n` set through the preload spring, stacks at mid-range,
+    /// slider at 0.
+    pub fn new(p: &Params, preload_n: f64) -> Self {
+        let m1 = p.stator.foot_mass_kg;
+        let m2 = p.stator.counterweight_mass_kg;
+        let k1 = p.k1_n_per_m();
+        let k2 = p.stator.preload_spring_n_per_m;
+        let kc = p.contact.stiffness_n_per_m;
+        let zeta = p.stator.damping_ratio;
+        // Structural damping: each spring gets the dashpot of its own mode's damping ratio.
+        let c1 = 2.0 * zeta * (k1 * m1 * m2 / (m1 + m2)).sqrt();
+        let c2 = 2.0 * zeta * (k2 * (m1 + m2)).sqrt();
+        let c3 = 2.0 * p.contact.damping_ratio * (kc * m1).sqrt();
+        let dt = p.integrator.step_s;
+
+        let build = |contact: bool| {
+            let (kk, cc) = if contact { (kc, c3) } else { (0.0, 0.0) };
+            let mut a = SMatrix::<f64, 6, 6>::zeros();
+            a[(0, 1)] = 1.0;
+            a[(1, 0)] = -(k1 + kk) / m1;
+            a[(1, 1)] = -(c1 + cc) / m1;
+            a[(1, 2)] = k1 / m1;
+            a[(1, 3)] = c1 / m1;
+            a[(1, 4)] = 1.0 / m1; // drive force on the foot
+            a[(2, 3)] = 1.0;
+            a[(3, 0)] = k1 / m2;
+            a[(3, 1)] = c1 / m2;
+            a[(3, 2)] = -(k1 + k2) / m2;
+            a[(3, 3)] = -(c1 + c2) / m2;
+            a[(3, 4)] = -1.0 / m2; // its reaction on the counterweight
+            a[(3, 5)] = 1.0 / m2; // preload spring anchor force k2·a enters as input 2
+            let mut levels = [Transition {
+                phi: [[0.0; 4]; 4],
+                gamma: [[0.0; 2]; 4],
+            }; SWITCH_LEVELS + 1];
+            for (lvl, t) in levels.iter_mut().enumerate() {
+                let h = dt / f64::from(1u32 << lvl);
+                let e = (a * h).exp();
+                for i in 0..4 {
+                    for j in 0..4 {
+                        t.phi[i][j] = e[(i, j)];
+                    }
+                    t.gamma[i][0] = e[(i, 4)];
+                    t.gamma[i][1] = e[(i, 5)];
+                }
+            }
+            levels
+        };
+        let transitions = [build(false), build(true)];
+
+        // Static equilibrium with the preload: foot pressed in by F0/kc, stacks compressed by F0/k1.
+        let y1 = preload_n / kc;
+        let y2 = y1 + preload_n / k1;
+        let anchor_m = y2 + preload_n / k2;
+        let tau_s = amplifier_stage_tau_s(p);
+        let mid = p.amplifier_mid_v();
+        let mut plant = Plant {
+            p: p.clone(),
+            dt_s: dt,
+            time_s: 0.0,
+            x: [y1, 0.0, y2, 0.0],
+            anchor_m,
+            transitions,
+            k_contact: kc,
+            c_contact: c3,
+            tau_s,
+            decay_full: (-dt / tau_s).exp(),
+            decay_half: (-0.5 * dt / tau_s).exp(),
+            amp_a_v: [mid; 2],
+            amp_b_v: [mid; 2],
+            dac_hold_v: [mid; 2],
+            next_dac_s: 0.0,
+            dac_period_s: 1.0 / p.amplifier.dac_rate_hz,
+            load: ExternalLoad::default(),
+            slider_x_m: 0.0,
+            slider_v_m_s: 0.0,
+            bristle_m: 0.0,
+            friction_model: p.friction.model,
+            contact_force_n: preload_n,
+            friction_force_n: 0.0,
+            foot_speed_m_s: 0.0,
+            drive_off: false,
+        };
+        plant.contact_force_n = plant.contact_force_of(&plant.x);
+        plant
+    }
+
+    pub fn params(&self) -> &Params {
+        &self.p
+    }
+    pub fn step_s(&self) -> f64 {
+        self.dt_s
+    }
+    pub fn time_s(&self) -> f64 {
+        self.time_s
+    }
+    pub fn slider_position_m(&self) -> f64 {
+        self.slider_x_m
+    }
+    pub fn slider_velocity_m_s(&self) -> f64 {
+        self.slider_v_m_s
+    }
+    /// Mean normal contact force over the last step.
+    pub fn contact_force_n(&self) -> f64 {
+        self.contact_force_n
+    }
+    /// Friction force on the slider over the last step.
+    pub fn friction_force_n(&self) -> f64 {
+        self.friction_force_n
+    }
+    /// Tangential foot speed at the end of the last step.
+    pub fn foot_speed_m_s(&self) -> f64 {
+        self.foot_speed_m_s
+    }
+    /// Foot normal position relative to the slider surface (positive = pressed in).
+    pub fn foot_normal_m(&self) -> f64 {
+        self.x[0]
+    }
+    /// Stack voltages at the amplifier output.
+    pub fn stack_volts(&self) -> [f64; 2] {
+        self.amp_b_v
+    }
+    /// Force in the preload path, which the force cell measures.
+    pub fn preload_force_n(&self) -> f64 {
+        self.p.stator.preload_spring_n_per_m * (self.anchor_m - self.x[2])
+    }
+    /// Moves the preload spring's anchor so the static preload becomes `preload_n`.
+    pub fn set_preload_n(&mut self, preload_n: f64) {
+        let now = self.preload_force_n();
+        self.anchor_m += (preload_n - now) / self.p.stator.preload_spring_n_per_m;
+    }
+    pub fn set_friction_model(&mut self, model: FrictionModel) {
+        self.friction_model = model;
+    }
+    /// With the drive off the DAC holds mid-range whatever the source says.
+    pub fn set_drive_off(&mut self, off: bool) {
+        self.drive_off = off;
+    }
+    /// Replaces the stator's normal state (for tests that start from a disturbed stator).
+    pub fn set_stator_state(&mut self, x: [f64; 4]) {
+        self.x = x;
+    }
+    pub fn stator_state(&self) -> [f64; 4] {
+        self.x
+    }
+
+    /// Mechanical energy of the stator: kinetic + stack/flexure + preload spring + contact spring.
+    pub fn stator_energy_j(&self) -> f64 {
+        let [y1, v1, y2, v2] = self.x;
+        let s = &self.p.stator;
+        let k1 = self.p.k1_n_per_m();
+        let pre = self.anchor_m - y2;
+        let mut e = 0.5 * s.foot_mass_kg * v1 * v1
+            + 0.5 * s.counterweight_mass_kg * v2 * v2
+            + 0.5 * k1 * (y1 - y2).powi(2)
+            + 0.5 * s.preload_spring_n_per_m * pre * pre;
+        if y1 > 0.0 {
+            e += 0.5 * self.k_contact * y1 * y1;
+        }
+        e
+    }
+
+    /// Encoder reading: counts of `encoder_resolution_m`, as an unbounded integer.
+    pub fn encoder_counts(&self) -> i64 {
+        (self.slider_x_m / self.p.sensors.encoder_resolution_m).floor() as i64
+    }
+
+    /// Force-cell ADC word: preload force plus Gaussian noise, quantised to the ADC's bits.
+    pub fn force_cell_word<R: Rng>(&self, rng: &mut R) -> u32 {
+        let s = &self.p.sensors;
+        let noise: f64 = rng.sample::<f64, _>(StandardNormal) * s.force_cell_noise_n;
+        let full = f64::from((1u32 << s.force_cell_adc_bits) - 1);
+        let word = ((self.preload_force_n() + noise) / s.force_cell_full_scale_n * full).round();
+        word.clamp(0.0, full) as u32
+    }
+
+    fn contact_force_of(&self, x: &[f64; 4]) -> f64 {
+        if x[0] > 0.0 {
+            (self.k_contact * x[0] + self.c_contact * x[1]).max(0.0)
+        } else {
+            0.0
+        }
+    }
+
+    fn in_contact(&self, x: &[f64; 4]) -> bool {
+        x[0] > 0.0 && self.k_contact * x[0] + self.c_contact * x[1] > 0.0
+    }
+
+    /// Advances the normal state over a sub-step of level `lvl`, splitting it where the contact
+    /// state changes; returns the contact impulse ∫Fc dt over the sub-step (trapezoid per piece).
+    fn advance_normal(&mut self, lvl: usize, drive_n: f64) -> f64 {
+        let contact = self.in_contact(&self.x);
+        let anchor_force_n = self.p.stator.preload_spring_n_per_m * self.anchor_m;
+        let next =
+            self.transitions[usize::from(contact)][lvl].apply(&self.x, drive_n, anchor_force_n);
+        if self.in_contact(&next) == contact || lvl == SWITCH_LEVELS {
+            let h = self.dt_s / f64::from(1u32 << lvl);
+            let f_start = if contact {
+                self.contact_force_of(&self.x)
+            } else {
+                0.0
+            };
+            let f_end = if contact {
+                self.contact_force_of(&next)
+            } else {
+                0.0
+            };
+            self.x = next;
+            return 0.5 * (f_start + f_end) * h;
+        }
+        self.advance_normal(lvl + 1, drive_n) + self.advance_normal(lvl + 1, drive_n)
+    }
+
+    /// One plant step.
+    pub fn step(&mut self, drive: &mut dyn DriveSource) {
+        let dt = self.dt_s;
+        if self.time_s + 0.5 * dt >= self.next_dac_s {
+            let v = if self.drive_off {
+                [self.p.amplifier_mid_v(); 2]
+            } else {
+                drive.volts(self.next_dac_s)
+            };
+            let (lo, hi) = (self.p.amplifier.output_min_v, self.p.amplifier.output_max_v);
+            self.dac_hold_v = [v[0].clamp(lo, hi), v[1].clamp(lo, hi)];
+            self.next_dac_s += self.dac_period_s;
+        }
+        // Two cascaded first-order poles, solved exactly for a held input u over the step:
+        // a(t) = u + (a0−u)e^{−t/τ}, b(t) = u + (b0−u)e^{−t/τ} + (a0−u)(t/τ)e^{−t/τ}.
+        let mut mid_v = [0.0; 2];
+        let mut rate_v_s = [0.0; 2];
+        for ch in 0..2 {
+            let u = self.dac_hold_v[ch];
+            let (a0, b0) = (self.amp_a_v[ch] - u, self.amp_b_v[ch] - u);
+            mid_v[ch] = u + (b0 + a0 * 0.5 * dt / self.tau_s) * self.decay_half;
+            let a1 = a0 * self.decay_full;
+            let b1 = (b0 + a0 * dt / self.tau_s) * self.decay_full;
+            self.amp_a_v[ch] = u + a1;
+            self.amp_b_v[ch] = u + b1;
+            rate_v_s[ch] = (a1 - b1) / self.tau_s;
+        }
+        let s = &self.p.stator;
+        let stroke = self.p.stack.stroke_m_per_v;
+        // Eq. (1)/(3): the normal force is the difference of the stack forces, the tangential
+        // foot motion the sum of the strokes.
+        let drive_n =
+            s.normal_force_ratio * self.p.stack.stiffness_n_per_m * stroke * (mid_v[0] - mid_v[1]);
+        let foot_speed = s.tangential_scale * stroke * (rate_v_s[0] + rate_v_s[1]);
+
+        let impulse = self.advance_normal(0, drive_n);
+        let fc = impulse / dt;
+        self.contact_force_n = fc;
+        self.foot_speed_m_s = foot_speed;
+        self.update_slider(fc, foot_speed);
+        self.time_s += dt;
+    }
+
+    /// Slider update with the selected friction law; the foot's tangential speed is imposed.
+    fn update_slider(&mut self, fc: f64, foot_speed: f64) {
+        let dt = self.dt_s;
+        let f = &self.p.friction;
+        let mass = self.p.slider.mass_kg;
+        let ext = self.load.force_n(self.slider_x_m)
+            - self.p.slider.damping_n_s_per_m * self.slider_v_m_s;
+        let v_old = self.slider_v_m_s;
+        let friction = match self.friction_model {
+            FrictionModel::Coulomb | FrictionModel::StaticDynamic => {
+                let mu_stick = if self.friction_model == FrictionModel::Coulomb {
+                    f.mu_dynamic
+                } else {
+                    f.mu_static
+                };
+                // Velocity-level implicit law: the friction needed to make the slider move with
+                // the foot at the end of the step, if within the sticking limit; otherwise
+                // sliding friction (plus εc's viscous part) in the direction of that need.
+                let need = mass * (foot_speed - v_old) / dt - ext;
+                if fc > 0.0 && need.abs() <= mu_stick * fc {
+                    need
+                } else if fc > 0.0 {
+                    // Implicit viscous part: εc·(ẋ − v_new) with v_new from this same update.
+                    let coulomb = f.mu_dynamic * fc * need.signum();
+                    let k = f.viscous_n_s_per_m * dt / mass;
+                    let v_new = (v_old + dt * (ext + coulomb) / mass + k * foot_speed) / (1.0 + k);
+                    coulomb + f.viscous_n_s_per_m * (foot_speed - v_new)
+                } else {
+                    0.0
+                }
+            }
+            FrictionModel::Lugre => {
+                // LuGre with forces proportional to the normal load:
+                // ż = s − σ0|s|z/g(s), F = Fc(σ0 z + σ1 ż) + εc s, g(s) = μd + (μs − μd)e^{−(s/vs)²}.
+                let slip = foot_speed - v_old;
+                let g = f.mu_dynamic
+                    + (f.mu_static - f.mu_dynamic)
+                        * (-(slip / f.lugre_stribeck_speed_m_s).powi(2)).exp();
+                let s0 = f.lugre_bristle_stiffness_per_m;
+                let z_new = (self.bristle_m + dt * slip) / (1.0 + dt * s0 * slip.abs() / g);
+                let z_rate = (z_new - self.bristle_m) / dt;
+                self.bristle_m = z_new;
+                fc * (s0 * z_new + f.lugre_bristle_damping_s_per_m * z_rate)
+                    + f.viscous_n_s_per_m * slip
+            }
+        };
+        self.friction_force_n = friction;
+        self.slider_v_m_s = v_old + dt * (ext + friction) / mass;
+        self.slider_x_m += dt * self.slider_v_m_s;
+    }
+
+    /// Runs `duration_s` of plant time.
+    pub fn run(&mut self, drive: &mut dyn DriveSource, duration_s: f64) {
+        let steps = (duration_s / self.dt_s).round() as u64;
+        for _ in 0..steps {
+            self.step(drive);
+        }
+    }
+}
+
+/// Steady slider speed (m/s, along the commanded direction) of the plant at a drive and load.
+///
+/// The drive ramps up over 10 ms; then the mean speed over windows of whole drive periods
+/// (≥ 10 ms) is tracked until two successive windows agree to 0.2 % of the foot's peak speed
+/// scale (or 1 s of plant time has passed).
+pub fn steady_speed_m_s(
+    p: &Params,
+    preload_n: f64,
+    voltage_v: f64,
+    frequency_hz: f64,
+    direction: i8,
+    load_n: f64,
+) -> f64 {
+    let mut plant = Plant::new(p, preload_n);
+    plant.load = ExternalLoad::opposing(load_n, direction);
+    let mut drive = QuadratureSine {
+        voltage_v,
+        frequency_hz,
+        direction,
+        mid_v: p.amplifier_mid_v(),
+        ramp_s: 0.01,
+    };
+    plant.run(&mut drive, 0.02);
+    let window_s = (0.01 * frequency_hz).ceil() / frequency_hz;
+    let scale = crate::steady::amplitudes(p, voltage_v, frequency_hz).xc_m
+        * std::f64::consts::TAU
+        * frequency_hz;
+    let sign = f64::from(direction.signum());
+    let mut last = f64::NAN;
+    while plant.time_s() < 1.0 {
+        let x0 = plant.slider_position_m();
+        let t0 = plant.time_s();
+        plant.run(&mut drive, window_s);
+        let v = sign * (plant.slider_position_m() - x0) / (plant.time_s() - t0);
+        if (v - last).abs() < 2e-3 * scale {
+            return 0.5 * (v + last);
+        }
+        last = v;
+    }
+    last
+}

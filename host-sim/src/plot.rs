@@ -1,0 +1,62 @@
+//! SVG plots (plotters, no system fonts needed).
+
+use crate::curve::Curve;
+use anyhow::{anyhow, Result};
+use plotters::prelude::*;
+use std::path::Path;
+
+pub fn thrust_velocity(curve: &Curve, path: &Path) -> Result<()> {
+    let root = SVGBackend::new(path, (800, 520)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow!("plot: {e}"))?;
+    let x_max = curve.stall_force_n.max(1e-6) * 1.05;
+    let y_max = curve
+        .points
+        .iter()
+        .map(|p| p.speed_mm_s_model.max(p.speed_mm_s_sim))
+        .fold(curve.no_load_speed_mm_s, f64::max)
+        .max(1e-6)
+        * 1.1;
+    let title = format!(
+        "Thrust–velocity, F0 {} N, {} V, {} Hz, direction {}",
+        curve.preload_n, curve.voltage_v, curve.frequency_hz, curve.direction
+    );
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d(0.0..x_max, 0.0..y_max)
+        .map_err(|e| anyhow!("plot: {e}"))?;
+    chart
+        .configure_mesh()
+        .x_desc("load opposing motion (N)")
+        .y_desc("slider speed (mm/s)")
+        .draw()
+        .map_err(|e| anyhow!("plot: {e}"))?;
+    chart
+        .draw_series(LineSeries::new(
+            curve.model_line.iter().copied(),
+            BLUE.stroke_width(2),
+        ))
+        .map_err(|e| anyhow!("plot: {e}"))?
+        .label("steady-state model (eqs. 19–22)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+    chart
+        .draw_series(
+            curve
+                .points
+                .iter()
+                .map(|p| Circle::new((p.load_n, p.speed_mm_s_sim), 5, RED.filled())),
+        )
+        .map_err(|e| anyhow!("plot: {e}"))?
+        .label("time-domain plant")
+        .legend(|(x, y)| Circle::new((x + 10, y), 5, RED.filled()));
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| anyhow!("plot: {e}"))?;
+    root.present().map_err(|e| anyhow!("plot: {e}"))?;
+    Ok(())
+}

@@ -1,0 +1,2 @@
+//! Shared control core placeholder (filled in below).
+#![no_std]
