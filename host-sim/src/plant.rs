@@ -452,7 +452,7 @@ impl Plant {
 /// Steady slider speed (m/s, along the commanded direction) of the plant at a drive and load.
 ///
 /// The drive ramps up over 10 ms; then the mean speed over windows of whole drive periods
-/// (≥ 10 ms) is tracked until two successive windows agree to 0.2 % of the foot's peak speed
+/// (≥ 10 ms) is tracked until two successive windows agree to 0.02 % of the foot's peak speed
 /// scale (or 1 s of plant time has passed).
 pub fn steady_speed_m_s(
     p: &Params,
@@ -483,7 +483,7 @@ pub fn steady_speed_m_s(
         let t0 = plant.time_s();
         plant.run(&mut drive, window_s);
         let v = sign * (plant.slider_position_m() - x0) / (plant.time_s() - t0);
-        if (v - last).abs() < 2e-3 * scale {
+        if (v - last).abs() < 2e-4 * scale {
             return 0.5 * (v + last);
         }
         last = v;
