@@ -1,1 +1,48 @@
-fn main() {}
+//! Plant speed and steady-state model throughput.
+//!
+//! `plant/run_10ms` reports its throughput in simulated microseconds per second, so its
+//! "Melem/s" figure reads directly as simulated seconds per wall-clock second (real-time factor).
+//! `steady/thrust_n` reports thrust evaluations per second.
+
+use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
+use host_sim::params::Params;
+use host_sim::plant::{Plant, QuadratureSine};
+use host_sim::steady::{OperatingPoint, ThrustModel};
+
+fn plant(c: &mut Criterion) {
+    let p = Params::prototype();
+    let mut g = c.benchmark_group("plant");
+    g.sample_size(20);
+    let sim_s = 0.01;
+    g.throughput(Throughput::Elements((sim_s * 1e6) as u64));
+    g.bench_function("run_10ms", |b| {
+        let mut plant = Plant::new(&p, 16.0);
+        let mut drive = QuadratureSine { voltage_v: 100.0, frequency_hz: 1500.0, direction: 1, mid_v: 50.0, ramp_s: 0.0 };
+        // Start from steady running so the benchmark measures the usual contact pattern.
+        plant.run(&mut drive, 0.02);
+        b.iter(|| plant.run(&mut drive, sim_s));
+    });
+    g.finish();
+}
+
+fn steady(c: &mut Criterion) {
+    let p = Params::prototype();
+    let m = ThrustModel::new(&p, OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 });
+    let mut g = c.benchmark_group("steady");
+    g.throughput(Throughput::Elements(1));
+    g.bench_function("thrust_n", |b| {
+        let mut v = 0.0;
+        b.iter(|| {
+            v = (v + 1e-5) % 2e-3;
+            black_box(m.thrust_n(black_box(v)))
+        })
+    });
+    g.bench_function("model_at_operating_point", |b| {
+        b.iter(|| black_box(ThrustModel::new(&p, black_box(OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 }))))
+    });
+    g.bench_function("stall_and_no_load", |b| b.iter(|| black_box((m.stall_force_n(), m.no_load_speed_m_s()))));
+    g.finish();
+}
+
+criterion_group!(benches, plant, steady);
+criterion_main!(benches);

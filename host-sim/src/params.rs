@@ -5,6 +5,7 @@
 //! typo cannot silently fall back to a default.
 
 use anyhow::{bail, Context, Result};
+
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -134,7 +135,17 @@ impl Params {
     }
 
     pub fn from_toml(text: &str) -> Result<Self> {
-        let p: Params = toml::from_str(text).context("parameter file does not match the schema")?;
+        let p: Params = toml::from_str(text).map_err(|e| {
+            // One line: "line L, column C: message" instead of toml's multi-line excerpt.
+            let (line, col) = match e.span() {
+                Some(span) => {
+                    let before = &text[..span.start.min(text.len())];
+                    (before.matches('\n').count() + 1, before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1)
+                }
+                None => (0, 0),
+            };
+            anyhow::anyhow!("line {line}, column {col}: {}", e.message().trim())
+        })?;
         p.validate()?;
         Ok(p)
     }
@@ -222,7 +233,7 @@ impl Params {
         if self.friction.mu_static < self.friction.mu_dynamic {
             bail!("friction.mu_static must be at least friction.mu_dynamic");
         }
-        if !(self.amplifier.output_max_v > self.amplifier.output_min_v) {
+        if self.amplifier.output_max_v.partial_cmp(&self.amplifier.output_min_v) != Some(std::cmp::Ordering::Greater) {
             bail!("amplifier.output_max_v must exceed amplifier.output_min_v");
         }
         if !(1..=24).contains(&self.sensors.force_cell_adc_bits) {
