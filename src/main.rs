@@ -15,10 +15,7 @@ mod board {
     /// 24 MHz HSE → PLL (M=6, N=85, R=2) → 170 MHz, boost mode (needed above 150 MHz).
     fn clocks() -> embassy_stm32::Config {
         let mut config = embassy_stm32::Config::default();
-        config.rcc.hse = Some(rcc::Hse {
-            freq: Hertz(24_000_000),
-            mode: rcc::HseMode::Oscillator,
-        });
+        config.rcc.hse = Some(rcc::Hse { freq: Hertz(24_000_000), mode: rcc::HseMode::Oscillator });
         config.rcc.pll = Some(rcc::Pll {
             source: rcc::PllSource::HSE,
             prediv: rcc::PllPreDiv::DIV6,

@@ -17,7 +17,8 @@ fn plant(c: &mut Criterion) {
     g.throughput(Throughput::Elements((sim_s * 1e6) as u64));
     g.bench_function("run_10ms", |b| {
         let mut plant = Plant::new(&p, 16.0);
-        let mut drive = QuadratureSine { voltage_v: 100.0, frequency_hz: 1500.0, direction: 1, mid_v: 50.0, ramp_s: 0.0 };
+        let mut drive =
+            QuadratureSine { voltage_v: 100.0, frequency_hz: 1500.0, direction: 1, mid_v: 50.0, ramp_s: 0.0 };
         // Start from steady running so the benchmark measures the usual contact pattern.
         plant.run(&mut drive, 0.02);
         b.iter(|| plant.run(&mut drive, sim_s));
@@ -38,9 +39,16 @@ fn steady(c: &mut Criterion) {
         })
     });
     g.bench_function("model_at_operating_point", |b| {
-        b.iter(|| black_box(ThrustModel::new(&p, black_box(OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 }))))
+        b.iter(|| {
+            black_box(ThrustModel::new(
+                &p,
+                black_box(OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 }),
+            ))
+        })
     });
-    g.bench_function("stall_and_no_load", |b| b.iter(|| black_box((m.stall_force_n(), m.no_load_speed_m_s()))));
+    g.bench_function("stall_and_no_load", |b| {
+        b.iter(|| black_box((m.stall_force_n(), m.no_load_speed_m_s())))
+    });
     g.finish();
 }
 

@@ -17,14 +17,8 @@ fn main() {
         );
     }
     for f0 in [3.0, 5.0, 10.0, 16.0, 20.0, 25.0] {
-        let m = ThrustModel::new(
-            &p,
-            OperatingPoint {
-                preload_n: f0,
-                voltage_v: 100.0,
-                frequency_hz: 1500.0,
-            },
-        );
+        let m =
+            ThrustModel::new(&p, OperatingPoint { preload_n: f0, voltage_v: 100.0, frequency_hz: 1500.0 });
         println!(
             "F0 {f0} theta/pi {:.3} stall {:.3} v0 {:.3} mm/s",
             m.contact_angle_rad / std::f64::consts::PI,
@@ -42,14 +36,7 @@ fn main() {
         (10.0, 75.0, 2200.0, 0.0),
         (16.0, 100.0, 800.0, 0.0),
     ] {
-        let m = ThrustModel::new(
-            &p,
-            OperatingPoint {
-                preload_n: f0,
-                voltage_v: v,
-                frequency_hz: f,
-            },
-        );
+        let m = ThrustModel::new(&p, OperatingPoint { preload_n: f0, voltage_v: v, frequency_hz: f });
         let load = frac * m.stall_force_n();
         let vm = m.speed_at_load_m_s(load).unwrap_or(f64::NAN);
         let vs = plant::steady_speed_m_s(&p, f0, v, f, 1, load);

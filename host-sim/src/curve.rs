@@ -46,19 +46,8 @@ pub fn compute(
     for i in 0..n {
         let load_n = stall * max_fraction * i as f64 / (n - 1) as f64;
         let model = m.speed_at_load_m_s(load_n).unwrap_or(f64::NAN) * 1e3;
-        let sim = steady_speed_m_s(
-            p,
-            op.preload_n,
-            op.voltage_v,
-            op.frequency_hz,
-            direction,
-            load_n,
-        ) * 1e3;
-        pts.push(CurvePoint {
-            load_n,
-            speed_mm_s_model: model,
-            speed_mm_s_sim: sim,
-        });
+        let sim = steady_speed_m_s(p, op.preload_n, op.voltage_v, op.frequency_hz, direction, load_n) * 1e3;
+        pts.push(CurvePoint { load_n, speed_mm_s_model: model, speed_mm_s_sim: sim });
         progress(i + 1, n);
     }
     let model_line = (0..=100)

@@ -10,11 +10,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(
-    name = "host-sim",
-    version,
-    about = "Simulator of the non-resonant shaking-beam piezo motor"
-)]
+#[command(name = "host-sim", version, about = "Simulator of the non-resonant shaking-beam piezo motor")]
 struct Cli {
     /// Parameter file (TOML); the compiled-in prototype set when absent.
     #[arg(long, global = true, value_name = "FILE")]
@@ -75,16 +71,10 @@ impl PointArgs {
     fn validate(&self, p: &Params) -> Result<OperatingPoint> {
         let range = p.amplifier.output_max_v - p.amplifier.output_min_v;
         if !(self.preload_n.is_finite() && self.preload_n > 0.0) {
-            bail!(
-                "--preload-n must be a positive force in newtons, got {}",
-                self.preload_n
-            );
+            bail!("--preload-n must be a positive force in newtons, got {}", self.preload_n);
         }
         if !(self.voltage_v.is_finite() && self.voltage_v > 0.0 && self.voltage_v <= range) {
-            bail!(
-                "--voltage-v must be in (0, {range}] V (the amplifier range), got {}",
-                self.voltage_v
-            );
+            bail!("--voltage-v must be in (0, {range}] V (the amplifier range), got {}", self.voltage_v);
         }
         if !(self.frequency_hz.is_finite()
             && self.frequency_hz > 0.0
@@ -154,13 +144,7 @@ fn run(cli: Cli) -> Result<()> {
         None => Params::prototype(),
     };
     match cli.command {
-        Command::Curve {
-            point,
-            points,
-            friction,
-            json,
-            plot: plot_path,
-        } => {
+        Command::Curve { point, points, friction, json, plot: plot_path } => {
             let op = point.validate(&params)?;
             if !(2..=200).contains(&points) {
                 bail!("--points must be 2..=200, got {points}");
@@ -206,12 +190,10 @@ fn run(cli: Cli) -> Result<()> {
             }
         }
         Command::Demo { plot: plot_path } => {
-            let op = OperatingPoint {
-                preload_n: 16.0,
-                voltage_v: 100.0,
-                frequency_hz: 1500.0,
-            };
-            println!("Shaking-beam piezo motor, prototype parameters: thrust–velocity at the paper's test point");
+            let op = OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 };
+            println!(
+                "Shaking-beam piezo motor, prototype parameters: thrust–velocity at the paper's test point"
+            );
             let c = curve::compute(&params, op, 1, 8, 0.9, progress("demo"));
             print_curve(&c);
             plot::thrust_velocity(&c, &plot_path)?;
@@ -236,16 +218,9 @@ fn print_curve(c: &curve::Curve) {
         "stall force {:.3} N, no-load speed {:.3} mm/s, foot peak speed {:.3} mm/s",
         c.stall_force_n, c.no_load_speed_mm_s, c.foot_peak_speed_mm_s
     );
-    println!(
-        "{:>10} {:>16} {:>16} {:>9}",
-        "load N", "model mm/s", "plant mm/s", "diff %"
-    );
+    println!("{:>10} {:>16} {:>16} {:>9}", "load N", "model mm/s", "plant mm/s", "diff %");
     for p in &c.points {
-        let diff =
-            100.0 * (p.speed_mm_s_sim - p.speed_mm_s_model) / p.speed_mm_s_model.abs().max(1e-9);
-        println!(
-            "{:>10.3} {:>16.4} {:>16.4} {:>9.2}",
-            p.load_n, p.speed_mm_s_model, p.speed_mm_s_sim, diff
-        );
+        let diff = 100.0 * (p.speed_mm_s_sim - p.speed_mm_s_model) / p.speed_mm_s_model.abs().max(1e-9);
+        println!("{:>10.3} {:>16.4} {:>16.4} {:>9.2}", p.load_n, p.speed_mm_s_model, p.speed_mm_s_sim, diff);
     }
 }

@@ -17,14 +17,7 @@ pub struct Row {
 }
 
 fn model(p: &Params, preload_n: f64, voltage_v: f64, frequency_hz: f64) -> ThrustModel {
-    ThrustModel::new(
-        p,
-        OperatingPoint {
-            preload_n,
-            voltage_v,
-            frequency_hz,
-        },
-    )
+    ThrustModel::new(p, OperatingPoint { preload_n, voltage_v, frequency_hz })
 }
 
 /// Evaluates every held row at the paper's test condition (100 V, 1.5 kHz unless stated).

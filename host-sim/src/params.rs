@@ -140,7 +140,10 @@ impl Params {
             let (line, col) = match e.span() {
                 Some(span) => {
                     let before = &text[..span.start.min(text.len())];
-                    (before.matches('\n').count() + 1, before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1)
+                    (
+                        before.matches('\n').count() + 1,
+                        before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1,
+                    )
                 }
                 None => (0, 0),
             };
@@ -168,35 +171,17 @@ impl Params {
             ("amplifier.bandwidth_hz", self.amplifier.bandwidth_hz),
             ("amplifier.dac_rate_hz", self.amplifier.dac_rate_hz),
             ("stator.foot_mass_kg", self.stator.foot_mass_kg),
-            (
-                "stator.counterweight_mass_kg",
-                self.stator.counterweight_mass_kg,
-            ),
-            (
-                "stator.preload_spring_n_per_m",
-                self.stator.preload_spring_n_per_m,
-            ),
+            ("stator.counterweight_mass_kg", self.stator.counterweight_mass_kg),
+            ("stator.preload_spring_n_per_m", self.stator.preload_spring_n_per_m),
             ("stator.normal_force_ratio", self.stator.normal_force_ratio),
             ("stator.tangential_scale", self.stator.tangential_scale),
             ("contact.stiffness_n_per_m", self.contact.stiffness_n_per_m),
             ("friction.mu_dynamic", self.friction.mu_dynamic),
-            (
-                "friction.lugre_bristle_stiffness_per_m",
-                self.friction.lugre_bristle_stiffness_per_m,
-            ),
-            (
-                "friction.lugre_stribeck_speed_m_s",
-                self.friction.lugre_stribeck_speed_m_s,
-            ),
+            ("friction.lugre_bristle_stiffness_per_m", self.friction.lugre_bristle_stiffness_per_m),
+            ("friction.lugre_stribeck_speed_m_s", self.friction.lugre_stribeck_speed_m_s),
             ("slider.mass_kg", self.slider.mass_kg),
-            (
-                "sensors.encoder_resolution_m",
-                self.sensors.encoder_resolution_m,
-            ),
-            (
-                "sensors.force_cell_full_scale_n",
-                self.sensors.force_cell_full_scale_n,
-            ),
+            ("sensors.encoder_resolution_m", self.sensors.encoder_resolution_m),
+            ("sensors.force_cell_full_scale_n", self.sensors.force_cell_full_scale_n),
             ("integrator.step_s", self.integrator.step_s),
         ];
         for (name, v) in positive {
@@ -205,25 +190,13 @@ impl Params {
             }
         }
         let non_negative = [
-            (
-                "stator.flexure_stiffness_n_per_m",
-                self.stator.flexure_stiffness_n_per_m,
-            ),
+            ("stator.flexure_stiffness_n_per_m", self.stator.flexure_stiffness_n_per_m),
             ("stator.damping_ratio", self.stator.damping_ratio),
             ("contact.damping_ratio", self.contact.damping_ratio),
-            (
-                "friction.viscous_n_s_per_m",
-                self.friction.viscous_n_s_per_m,
-            ),
-            (
-                "friction.lugre_bristle_damping_s_per_m",
-                self.friction.lugre_bristle_damping_s_per_m,
-            ),
+            ("friction.viscous_n_s_per_m", self.friction.viscous_n_s_per_m),
+            ("friction.lugre_bristle_damping_s_per_m", self.friction.lugre_bristle_damping_s_per_m),
             ("slider.damping_n_s_per_m", self.slider.damping_n_s_per_m),
-            (
-                "sensors.force_cell_noise_n",
-                self.sensors.force_cell_noise_n,
-            ),
+            ("sensors.force_cell_noise_n", self.sensors.force_cell_noise_n),
         ];
         for (name, v) in non_negative {
             if !(v.is_finite() && v >= 0.0) {
@@ -233,7 +206,9 @@ impl Params {
         if self.friction.mu_static < self.friction.mu_dynamic {
             bail!("friction.mu_static must be at least friction.mu_dynamic");
         }
-        if self.amplifier.output_max_v.partial_cmp(&self.amplifier.output_min_v) != Some(std::cmp::Ordering::Greater) {
+        if self.amplifier.output_max_v.partial_cmp(&self.amplifier.output_min_v)
+            != Some(std::cmp::Ordering::Greater)
+        {
             bail!("amplifier.output_max_v must exceed amplifier.output_min_v");
         }
         if !(1..=24).contains(&self.sensors.force_cell_adc_bits) {

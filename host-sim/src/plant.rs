@@ -27,10 +27,7 @@ pub struct ExternalLoad {
 impl ExternalLoad {
     /// A hanging weight of `force_n` that opposes motion in `direction` (+1 or −1).
     pub fn opposing(force_n: f64, direction: i8) -> Self {
-        ExternalLoad {
-            constant_n: -force_n * f64::from(direction.signum()),
-            ..Default::default()
-        }
+        ExternalLoad { constant_n: -force_n * f64::from(direction.signum()), ..Default::default() }
     }
     fn force_n(&self, position_m: f64) -> f64 {
         self.constant_n - self.spring_n_per_m * (position_m - self.spring_anchor_m)
@@ -120,11 +117,7 @@ pub struct QuadratureSine {
 
 impl DriveSource for QuadratureSine {
     fn volts(&mut self, t: f64) -> [f64; 2] {
-        let ramp = if self.ramp_s > 0.0 {
-            (t / self.ramp_s).min(1.0)
-        } else {
-            1.0
-        };
+        let ramp = if self.ramp_s > 0.0 { (t / self.ramp_s).min(1.0) } else { 1.0 };
         let a = 0.5 * self.voltage_v * ramp;
         let ph = std::f64::consts::TAU * self.frequency_hz * t;
         let lag = std::f64::consts::FRAC_PI_2 * f64::from(self.direction.signum());
@@ -164,10 +157,7 @@ impl Plant {
             a[(3, 3)] = -(c1 + c2) / m2;
             a[(3, 4)] = -1.0 / m2; // its reaction on the counterweight
             a[(3, 5)] = 1.0 / m2; // preload spring anchor force k2·a enters as input 2
-            let mut levels = [Transition {
-                phi: [[0.0; 4]; 4],
-                gamma: [[0.0; 2]; 4],
-            }; SWITCH_LEVELS + 1];
+            let mut levels = [Transition { phi: [[0.0; 4]; 4], gamma: [[0.0; 2]; 4] }; SWITCH_LEVELS + 1];
             for (lvl, t) in levels.iter_mut().enumerate() {
                 let h = dt / f64::from(1u32 << lvl);
                 let e = (a * h).exp();
@@ -326,20 +316,11 @@ impl Plant {
     fn advance_normal(&mut self, lvl: usize, drive_n: f64) -> f64 {
         let contact = self.in_contact(&self.x);
         let anchor_force_n = self.p.stator.preload_spring_n_per_m * self.anchor_m;
-        let next =
-            self.transitions[usize::from(contact)][lvl].apply(&self.x, drive_n, anchor_force_n);
+        let next = self.transitions[usize::from(contact)][lvl].apply(&self.x, drive_n, anchor_force_n);
         if self.in_contact(&next) == contact || lvl == SWITCH_LEVELS {
             let h = self.dt_s / f64::from(1u32 << lvl);
-            let f_start = if contact {
-                self.contact_force_of(&self.x)
-            } else {
-                0.0
-            };
-            let f_end = if contact {
-                self.contact_force_of(&next)
-            } else {
-                0.0
-            };
+            let f_start = if contact { self.contact_force_of(&self.x) } else { 0.0 };
+            let f_end = if contact { self.contact_force_of(&next) } else { 0.0 };
             self.x = next;
             return 0.5 * (f_start + f_end) * h;
         }
@@ -350,11 +331,7 @@ impl Plant {
     pub fn step(&mut self, drive: &mut dyn DriveSource) {
         let dt = self.dt_s;
         if self.time_s + 0.5 * dt >= self.next_dac_s {
-            let v = if self.drive_off {
-                [self.p.amplifier_mid_v(); 2]
-            } else {
-                drive.volts(self.next_dac_s)
-            };
+            let v = if self.drive_off { [self.p.amplifier_mid_v(); 2] } else { drive.volts(self.next_dac_s) };
             let (lo, hi) = (self.p.amplifier.output_min_v, self.p.amplifier.output_max_v);
             self.dac_hold_v = [v[0].clamp(lo, hi), v[1].clamp(lo, hi)];
             self.next_dac_s += self.dac_period_s;
@@ -377,8 +354,7 @@ impl Plant {
         let stroke = self.p.stack.stroke_m_per_v;
         // Eq. (1)/(3): the normal force is the difference of the stack forces, the tangential
         // foot motion the sum of the strokes.
-        let drive_n =
-            s.normal_force_ratio * self.p.stack.stiffness_n_per_m * stroke * (mid_v[0] - mid_v[1]);
+        let drive_n = s.normal_force_ratio * self.p.stack.stiffness_n_per_m * stroke * (mid_v[0] - mid_v[1]);
         let foot_speed = s.tangential_scale * stroke * (rate_v_s[0] + rate_v_s[1]);
 
         let impulse = self.advance_normal(0, drive_n);
@@ -394,16 +370,12 @@ impl Plant {
         let dt = self.dt_s;
         let f = &self.p.friction;
         let mass = self.p.slider.mass_kg;
-        let ext = self.load.force_n(self.slider_x_m)
-            - self.p.slider.damping_n_s_per_m * self.slider_v_m_s;
+        let ext = self.load.force_n(self.slider_x_m) - self.p.slider.damping_n_s_per_m * self.slider_v_m_s;
         let v_old = self.slider_v_m_s;
         let friction = match self.friction_model {
             FrictionModel::Coulomb | FrictionModel::StaticDynamic => {
-                let mu_stick = if self.friction_model == FrictionModel::Coulomb {
-                    f.mu_dynamic
-                } else {
-                    f.mu_static
-                };
+                let mu_stick =
+                    if self.friction_model == FrictionModel::Coulomb { f.mu_dynamic } else { f.mu_static };
                 // Velocity-level implicit law: the friction needed to make the slider move with
                 // the foot at the end of the step, if within the sticking limit; otherwise
                 // sliding friction (plus εc's viscous part) in the direction of that need.
@@ -425,14 +397,12 @@ impl Plant {
                 // ż = s − σ0|s|z/g(s), F = Fc(σ0 z + σ1 ż) + εc s, g(s) = μd + (μs − μd)e^{−(s/vs)²}.
                 let slip = foot_speed - v_old;
                 let g = f.mu_dynamic
-                    + (f.mu_static - f.mu_dynamic)
-                        * (-(slip / f.lugre_stribeck_speed_m_s).powi(2)).exp();
+                    + (f.mu_static - f.mu_dynamic) * (-(slip / f.lugre_stribeck_speed_m_s).powi(2)).exp();
                 let s0 = f.lugre_bristle_stiffness_per_m;
                 let z_new = (self.bristle_m + dt * slip) / (1.0 + dt * s0 * slip.abs() / g);
                 let z_rate = (z_new - self.bristle_m) / dt;
                 self.bristle_m = z_new;
-                fc * (s0 * z_new + f.lugre_bristle_damping_s_per_m * z_rate)
-                    + f.viscous_n_s_per_m * slip
+                fc * (s0 * z_new + f.lugre_bristle_damping_s_per_m * z_rate) + f.viscous_n_s_per_m * slip
             }
         };
         self.friction_force_n = friction;
@@ -464,18 +434,12 @@ pub fn steady_speed_m_s(
 ) -> f64 {
     let mut plant = Plant::new(p, preload_n);
     plant.load = ExternalLoad::opposing(load_n, direction);
-    let mut drive = QuadratureSine {
-        voltage_v,
-        frequency_hz,
-        direction,
-        mid_v: p.amplifier_mid_v(),
-        ramp_s: 0.01,
-    };
+    let mut drive =
+        QuadratureSine { voltage_v, frequency_hz, direction, mid_v: p.amplifier_mid_v(), ramp_s: 0.01 };
     plant.run(&mut drive, 0.02);
     let window_s = (0.01 * frequency_hz).ceil() / frequency_hz;
-    let scale = crate::steady::amplitudes(p, voltage_v, frequency_hz).xc_m
-        * std::f64::consts::TAU
-        * frequency_hz;
+    let scale =
+        crate::steady::amplitudes(p, voltage_v, frequency_hz).xc_m * std::f64::consts::TAU * frequency_hz;
     let sign = f64::from(direction.signum());
     let mut last = f64::NAN;
     while plant.time_s() < 1.0 {

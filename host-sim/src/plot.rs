@@ -34,20 +34,12 @@ pub fn thrust_velocity(curve: &Curve, path: &Path) -> Result<()> {
         .draw()
         .map_err(|e| anyhow!("plot: {e}"))?;
     chart
-        .draw_series(LineSeries::new(
-            curve.model_line.iter().copied(),
-            BLUE.stroke_width(2),
-        ))
+        .draw_series(LineSeries::new(curve.model_line.iter().copied(), BLUE.stroke_width(2)))
         .map_err(|e| anyhow!("plot: {e}"))?
         .label("steady-state model (eqs. 19–22)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
     chart
-        .draw_series(
-            curve
-                .points
-                .iter()
-                .map(|p| Circle::new((p.load_n, p.speed_mm_s_sim), 5, RED.filled())),
-        )
+        .draw_series(curve.points.iter().map(|p| Circle::new((p.load_n, p.speed_mm_s_sim), 5, RED.filled())))
         .map_err(|e| anyhow!("plot: {e}"))?
         .label("time-domain plant")
         .legend(|(x, y)| Circle::new((x + 10, y), 5, RED.filled()));

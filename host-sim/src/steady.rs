@@ -45,14 +45,9 @@ pub fn amplitudes(p: &Params, voltage_v: f64, frequency_hz: f64) -> Amplitudes {
     let w2 = (TAU * frequency_hz).powi(2);
     let stroke_m = p.stack.stroke_m_per_v * 0.5 * voltage_v * amplifier_gain(p, frequency_hz);
     // F1 = ρ·Fmax·sin, F2 = ρ'·Fmax·cos (3) with ρ = ρ': the normal sum has amplitude √2·ρ·Fmax.
-    let normal_force_n =
-        2f64.sqrt() * p.stator.normal_force_ratio * p.stack.stiffness_n_per_m * stroke_m;
+    let normal_force_n = 2f64.sqrt() * p.stator.normal_force_ratio * p.stack.stiffness_n_per_m * stroke_m;
     let (m1, m2) = (p.stator.foot_mass_kg, p.stator.counterweight_mass_kg);
-    let (k1, k2, k3) = (
-        p.k1_n_per_m(),
-        p.stator.preload_spring_n_per_m,
-        p.contact.stiffness_n_per_m,
-    );
+    let (k1, k2, k3) = (p.k1_n_per_m(), p.stator.preload_spring_n_per_m, p.contact.stiffness_n_per_m);
     // Eq. (5): Ken = ((k1 − ω²m1)(k2 − ω²m2) − ω²m1k1) / (k2 − ω²m2).
     let ken = ((k1 - w2 * m1) * (k2 - w2 * m2) - w2 * m1 * k1) / (k2 - w2 * m2);
     // Eq. (7): Kec = ((k1 + k3 − ω²m1)(k1 + k2 − ω²m2) − k1²) / (k2 − ω²m2).
@@ -175,8 +170,7 @@ impl ThrustModel {
         let wx = self.foot_speed_m_s;
         if self.full_contact() {
             let f0 = self.preload_n;
-            let coulomb =
-                self.mu / TAU * (4.0 * f0 * phi_p - TAU * f0 + 4.0 * self.kc_yc_n * phi_p.sin());
+            let coulomb = self.mu / TAU * (4.0 * f0 * phi_p - TAU * f0 + 4.0 * self.kc_yc_n * phi_p.sin());
             return coulomb - self.viscous_n_s_per_m * speed_m_s;
         }
         let half = 0.5 * self.contact_angle_rad;
@@ -185,8 +179,8 @@ impl ThrustModel {
         let arc = |b: f64| b.sin() - c * b;
         let m = phi_p.min(half);
         let coulomb = r / TAU * (4.0 * arc(m) - 2.0 * arc(half));
-        let viscous = self.viscous_n_s_per_m / TAU
-            * (2.0 * wx * half.sin() - self.contact_angle_rad * speed_m_s);
+        let viscous =
+            self.viscous_n_s_per_m / TAU * (2.0 * wx * half.sin() - self.contact_angle_rad * speed_m_s);
         coulomb + viscous
     }
 

@@ -39,7 +39,17 @@ fn bad_input_gets_a_one_line_error_and_a_non_zero_exit() {
 fn curve_json_has_the_promised_fields_and_physical_values() {
     let svg = std::env::temp_dir().join(format!("host-sim-curve-{}.svg", std::process::id()));
     let out = host_sim(&[
-        "curve", "--preload-n", "16", "--voltage-v", "100", "--frequency-hz", "1500", "--points", "4", "--json", "--plot",
+        "curve",
+        "--preload-n",
+        "16",
+        "--voltage-v",
+        "100",
+        "--frequency-hz",
+        "1500",
+        "--points",
+        "4",
+        "--json",
+        "--plot",
         svg.to_str().unwrap(),
     ]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));

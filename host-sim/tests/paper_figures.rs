@@ -7,11 +7,7 @@ use host_sim::steady::{amplitudes, OperatingPoint, ThrustModel};
 fn at(preload_n: f64) -> ThrustModel {
     ThrustModel::new(
         &Params::prototype(),
-        OperatingPoint {
-            preload_n,
-            voltage_v: 100.0,
-            frequency_hz: 1500.0,
-        },
+        OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz: 1500.0 },
     )
 }
 
@@ -58,10 +54,7 @@ fn speed_falls_above_25n() {
 #[test]
 fn non_contact_amplitude_is_0_75_um_rising_with_frequency() {
     let p = Params::prototype();
-    let y: Vec<f64> = [1000.0, 1500.0, 2000.0]
-        .iter()
-        .map(|&f| amplitudes(&p, 100.0, f).yn_m * 1e6)
-        .collect();
+    let y: Vec<f64> = [1000.0, 1500.0, 2000.0].iter().map(|&f| amplitudes(&p, 100.0, f).yn_m * 1e6).collect();
     for v in &y {
         assert!((0.6..=0.9).contains(v), "{y:?}");
     }
@@ -73,8 +66,7 @@ fn max_thrust_ceramic_vs_epoxy_contact_at_the_papers_fixed_amplitude() {
     // Fig. 9 of the paper: ℜ = μ·kc·Yc with Yc held, kc from 2e9 (ceramic) to 5e8 (epoxy).
     let p = Params::prototype();
     let ceramic = at(16.0);
-    let epoxy =
-        ceramic.with_contact_force_amplitude(ceramic.kc_yc_n * 5e8 / p.contact.stiffness_n_per_m);
+    let epoxy = ceramic.with_contact_force_amplitude(ceramic.kc_yc_n * 5e8 / p.contact.stiffness_n_per_m);
     let (fc, fe) = (ceramic.stall_force_n(), epoxy.stall_force_n());
     assert!(fc > 4.0, "ceramic {fc}");
     assert!(fc / fe > 2.5, "ceramic {fc} epoxy {fe}");
@@ -86,10 +78,6 @@ fn the_paper_command_reports_every_row_passing() {
     let rows = host_sim::paper::rows(&Params::prototype());
     assert!(rows.len() >= 12);
     for r in rows {
-        assert!(
-            r.pass,
-            "{} = {} {} outside {}",
-            r.name, r.ours, r.unit, r.tolerance
-        );
+        assert!(r.pass, "{} = {} {} outside {}", r.name, r.ours, r.unit, r.tolerance);
     }
 }

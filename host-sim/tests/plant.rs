@@ -13,11 +13,7 @@ fn plant_steady_speed_within_5_percent_of_the_model_over_the_prototype_grid() {
     for preload_n in [5.0, 10.0, 16.0, 20.0] {
         for voltage_v in [50.0, 100.0] {
             for frequency_hz in [800.0, 1500.0, 2200.0] {
-                let op = OperatingPoint {
-                    preload_n,
-                    voltage_v,
-                    frequency_hz,
-                };
+                let op = OperatingPoint { preload_n, voltage_v, frequency_hz };
                 let m = ThrustModel::new(&p, op);
                 for fraction in [0.0, 0.35, 0.7] {
                     let load = fraction * m.stall_force_n();
@@ -36,10 +32,7 @@ fn plant_steady_speed_within_5_percent_of_the_model_over_the_prototype_grid() {
         }
     }
     assert_eq!(runs, 72);
-    eprintln!(
-        "worst relative speed difference over the grid: {:.2} %",
-        100.0 * worst
-    );
+    eprintln!("worst relative speed difference over the grid: {:.2} %", 100.0 * worst);
 }
 
 #[test]
@@ -50,10 +43,7 @@ fn reverse_drive_runs_backwards_at_the_same_speed() {
         let rev = steady_speed_m_s(&p, preload_n, 100.0, 1500.0, -1, load);
         // The stator is mirror-symmetric: only the sense of the ellipse changes.
         assert!(fwd > 0.0 && rev > 0.0);
-        assert!(
-            (fwd - rev).abs() < 0.01 * fwd,
-            "forward {fwd} reverse {rev}"
-        );
+        assert!((fwd - rev).abs() < 0.01 * fwd, "forward {fwd} reverse {rev}");
     }
 }
 
@@ -62,15 +52,10 @@ fn halving_the_step_changes_the_steady_speed_by_less_than_1_percent() {
     let p = Params::prototype();
     let mut half = p.clone();
     half.integrator.step_s *= 0.5;
-    for (preload_n, frequency_hz, load) in
-        [(16.0, 1500.0, 0.0), (16.0, 1500.0, 2.0), (8.0, 2200.0, 1.0)]
-    {
+    for (preload_n, frequency_hz, load) in [(16.0, 1500.0, 0.0), (16.0, 1500.0, 2.0), (8.0, 2200.0, 1.0)] {
         let a = steady_speed_m_s(&p, preload_n, 100.0, frequency_hz, 1, load);
         let b = steady_speed_m_s(&half, preload_n, 100.0, frequency_hz, 1, load);
-        assert!(
-            (a - b).abs() < 0.01 * b.abs(),
-            "F0 {preload_n} f {frequency_hz} load {load}: {a} vs {b}"
-        );
+        assert!((a - b).abs() < 0.01 * b.abs(), "F0 {preload_n} f {frequency_hz} load {load}: {a} vs {b}");
     }
 }
 
@@ -99,20 +84,13 @@ fn undamped_stator_conserves_energy_through_contact_and_flight() {
         }
         was_in = inside;
     }
-    assert!(
-        landings > 3,
-        "the foot must leave and hit the slider repeatedly ({landings})"
-    );
+    assert!(landings > 3, "the foot must leave and hit the slider repeatedly ({landings})");
     assert!(worst < 1e-6, "energy drift {worst:e} (relative)");
 }
 
 #[test]
 fn with_the_drive_off_the_slider_does_not_creep() {
-    for model in [
-        FrictionModel::Coulomb,
-        FrictionModel::StaticDynamic,
-        FrictionModel::Lugre,
-    ] {
+    for model in [FrictionModel::Coulomb, FrictionModel::StaticDynamic, FrictionModel::Lugre] {
         let mut p = Params::prototype();
         p.friction.model = model;
         let mut plant = Plant::new(&p, 16.0);
@@ -144,10 +122,7 @@ fn a_load_above_static_friction_drags_the_idle_slider() {
     plant.run(&mut drive, 0.05);
     let expected_accel = (3.0 - p.friction.mu_dynamic * 5.0) / p.slider.mass_kg;
     let v = plant.slider_velocity_m_s();
-    assert!(
-        (v + expected_accel * 0.05).abs() < 0.02 * expected_accel * 0.05,
-        "v {v}"
-    );
+    assert!((v + expected_accel * 0.05).abs() < 0.02 * expected_accel * 0.05, "v {v}");
 }
 
 #[test]
@@ -162,10 +137,7 @@ fn static_dynamic_with_equal_coefficients_is_coulomb_and_lugre_comes_close() {
     p.friction.model = FrictionModel::Lugre;
     p.friction.lugre_bristle_stiffness_per_m = 1e8;
     let lugre = steady_speed_m_s(&p, 16.0, 100.0, 1500.0, 1, 1.0);
-    assert!(
-        (lugre - coulomb).abs() < 0.05 * coulomb,
-        "lugre {lugre} coulomb {coulomb}"
-    );
+    assert!((lugre - coulomb).abs() < 0.05 * coulomb, "lugre {lugre} coulomb {coulomb}");
 }
 
 #[test]
@@ -173,13 +145,8 @@ fn mean_contact_force_equals_the_preload_in_steady_operation() {
     // Momentum balance of eq. (12): over whole periods the mean contact force is F0.
     let p = Params::prototype();
     let mut plant = Plant::new(&p, 12.0);
-    let mut drive = QuadratureSine {
-        voltage_v: 100.0,
-        frequency_hz: 1000.0,
-        direction: 1,
-        mid_v: 50.0,
-        ramp_s: 0.01,
-    };
+    let mut drive =
+        QuadratureSine { voltage_v: 100.0, frequency_hz: 1000.0, direction: 1, mid_v: 50.0, ramp_s: 0.01 };
     plant.run(&mut drive, 0.06);
     let n = (0.01 / plant.step_s()).round() as usize;
     let mut sum = 0.0;
@@ -188,10 +155,7 @@ fn mean_contact_force_equals_the_preload_in_steady_operation() {
         sum += plant.contact_force_n();
     }
     let mean = sum / n as f64;
-    assert!(
-        (mean - 12.0).abs() < 0.02 * 12.0,
-        "mean contact force {mean} N"
-    );
+    assert!((mean - 12.0).abs() < 0.02 * 12.0, "mean contact force {mean} N");
 }
 
 #[test]
@@ -199,13 +163,8 @@ fn sensors_read_what_the_firmware_would() {
     use rand::SeedableRng;
     let p = Params::prototype();
     let mut plant = Plant::new(&p, 16.0);
-    let mut drive = QuadratureSine {
-        voltage_v: 100.0,
-        frequency_hz: 1500.0,
-        direction: 1,
-        mid_v: 50.0,
-        ramp_s: 0.005,
-    };
+    let mut drive =
+        QuadratureSine { voltage_v: 100.0, frequency_hz: 1500.0, direction: 1, mid_v: 50.0, ramp_s: 0.005 };
     plant.run(&mut drive, 0.05);
     let x = plant.slider_position_m();
     assert!(x > 50e-6);

@@ -6,14 +6,7 @@ use host_sim::steady::*;
 use std::f64::consts::{PI, TAU};
 
 fn model(preload_n: f64, voltage_v: f64, frequency_hz: f64) -> ThrustModel {
-    ThrustModel::new(
-        &Params::prototype(),
-        OperatingPoint {
-            preload_n,
-            voltage_v,
-            frequency_hz,
-        },
-    )
+    ThrustModel::new(&Params::prototype(), OperatingPoint { preload_n, voltage_v, frequency_hz })
 }
 
 #[test]
@@ -33,9 +26,7 @@ fn closed_form_equals_numerical_period_average() {
                 // Force scale of this point: the largest friction force that can occur.
                 let scale = m.mu * (m.preload_n + m.kc_yc_n);
                 // Speeds from well backwards to beyond the foot's peak speed, both signs.
-                for u in [
-                    -1.5, -1.0, -0.6, -0.2, 0.0, 0.1, 0.3, 0.5, 0.7, 0.9, 0.99, 1.0, 1.3,
-                ] {
+                for u in [-1.5, -1.0, -0.6, -0.2, 0.0, 0.1, 0.3, 0.5, 0.7, 0.9, 0.99, 1.0, 1.3] {
                     let v = u * m.foot_speed_m_s;
                     let closed = m.thrust_n(v);
                     let numeric = m.thrust_numeric_n(v, 400_000);
@@ -48,21 +39,14 @@ fn closed_form_equals_numerical_period_average() {
             }
         }
     }
-    assert!(
-        partial > 10 && full > 5,
-        "grid must cover both partial ({partial}) and full ({full}) contact"
-    );
+    assert!(partial > 10 && full > 5, "grid must cover both partial ({partial}) and full ({full}) contact");
     assert!(cases > 500);
 }
 
 #[test]
 fn reverse_direction_is_the_mirror_image() {
     let p = Params::prototype();
-    let op = OperatingPoint {
-        preload_n: 12.0,
-        voltage_v: 80.0,
-        frequency_hz: 1200.0,
-    };
+    let op = OperatingPoint { preload_n: 12.0, voltage_v: 80.0, frequency_hz: 1200.0 };
     let m = ThrustModel::new(&p, op);
     for u in [-0.8, -0.3, 0.0, 0.4, 0.9] {
         let v = u * m.foot_speed_m_s;
@@ -97,10 +81,7 @@ fn closed_form_is_the_papers_eq_22_where_it_applies() {
             let v = u * m.foot_speed_m_s;
             let ours = m.thrust_n(v);
             let theirs = paper_eq22_coulomb(&m, v);
-            assert!(
-                (ours - theirs).abs() < 1e-9 * m.kc_yc_n,
-                "F0 {preload_n} u {u}: {ours} vs {theirs}"
-            );
+            assert!((ours - theirs).abs() < 1e-9 * m.kc_yc_n, "F0 {preload_n} u {u}: {ours} vs {theirs}");
             checked += 1;
         }
     }
@@ -162,10 +143,8 @@ fn amplitudes_follow_eqs_5_and_7() {
     let (m1, m2) = (p.stator.foot_mass_kg, p.stator.counterweight_mass_kg);
     let k1 = p.stack.stiffness_n_per_m + p.stator.flexure_stiffness_n_per_m;
     let (k2, k3) = (p.stator.preload_spring_n_per_m, p.contact.stiffness_n_per_m);
-    let y_free =
-        a.normal_force_n * (k2 - w2 * m2) / ((k1 - w2 * m1) * (k2 - w2 * m2) - w2 * m1 * k1);
-    let y_contact =
-        a.normal_force_n * (k2 - w2 * m2) / ((k1 + k3 - w2 * m1) * (k1 + k2 - w2 * m2) - k1 * k1);
+    let y_free = a.normal_force_n * (k2 - w2 * m2) / ((k1 - w2 * m1) * (k2 - w2 * m2) - w2 * m1 * k1);
+    let y_contact = a.normal_force_n * (k2 - w2 * m2) / ((k1 + k3 - w2 * m1) * (k1 + k2 - w2 * m2) - k1 * k1);
     assert!((a.yn_m - y_free.abs()).abs() < 1e-15);
     assert!((a.yc_m - y_contact.abs()).abs() < 1e-15);
     // Contact stage amplitude is tens of times smaller than the free amplitude.
