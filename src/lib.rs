@@ -1,2 +1,20 @@
-//! Shared control core placeholder (filled in below).
+//! Control core of the piezo-drive firmware: `no_std`, no HAL, no allocation.
+//!
+//! The firmware (`src/main.rs`) and the simulator (`host-sim`) run this very code:
+//! - [`generator`]: quadrature sine (and static) DAC words for the two stacks;
+//! - [`sensors`]: encoder unwrapping, preload force cell;
+//! - [`model`]: fixed-point steady-state thrust model and its inverse (the feedforward);
+//! - [`profile`]: online trapezoidal motion profile;
+//! - [`controller`]: state machine, position control, supervision; one entry point `step`.
 #![no_std]
+#![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
+
+pub mod controller;
+pub mod generator;
+pub mod model;
+pub mod profile;
+pub mod sensors;
+pub mod trig;
+
+/// The core's fixed-point number: 16 integer bits, 16 fraction bits (resolution 1.5e-5).
+pub type Fx = fixed::types::I16F16;

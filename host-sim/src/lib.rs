@@ -5,4 +5,5 @@ pub mod paper;
 pub mod params;
 pub mod plant;
 pub mod plot;
+pub mod sil;
 pub mod steady;

@@ -1,0 +1,642 @@
+//! The positioning controller: one entry point, [`Controller::step`], called at a fixed rate with
+//! raw sensor words; it returns the DAC words for the next period and the amplifier enable.
+//!
+//! Coarse motion: an online trapezoidal profile; the drive voltage comes from the inverse of the
+//! fixed-point thrust model (feedforward: profile speed + position feedback, against a load
+//! estimate integrated from the position error), at the drive frequency. Near the target the sine
+//! ramps out and the stacks are held at static voltages (fine mode): the foot sticks to the slider
+//! and moves it by a fraction of its stroke. Supervision puts the drive in a safe state on any
+//! fault; only [`Controller::clear_fault`] leaves it.
+
+use crate::generator::{DacConfig, QuadratureGenerator};
+use crate::model::MotorConstants;
+use crate::profile::Profile;
+use crate::sensors::{Encoder, PreloadCalibration, PreloadCell};
+use crate::Fx;
+
+/// DAC samples produced per control period (DAC rate / loop rate).
+pub const DAC_SAMPLES_PER_STEP: usize = 20;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FaultCode {
+    FollowingError = 1,
+    Stall = 2,
+    PreloadOutOfWindow = 3,
+    PreloadSensor = 4,
+    EncoderJump = 5,
+}
+
+impl FaultCode {
+    pub fn text(self) -> &'static str {
+        match self {
+            FaultCode::FollowingError => "following error above limit",
+            FaultCode::Stall => "stall: slider does not follow the drive",
+            FaultCode::PreloadOutOfWindow => "preload outside the usable window",
+            FaultCode::PreloadSensor => "preload sensor reading invalid",
+            FaultCode::EncoderJump => "encoder jump",
+        }
+    }
+}
+
+/// Why a command was refused.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum CommandError {
+    Faulted(FaultCode),
+    ServoOff,
+    OutOfTravel,
+    PreloadInvalid,
+    PreloadOutOfWindow,
+    InvalidValue,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum State {
+    /// Servo off; outputs quiet.
+    Idle,
+    /// Following a profile.
+    Moving,
+    /// Closed loop at the target.
+    Holding,
+    /// Moving open loop toward a reference mark.
+    Referencing,
+    Fault(FaultCode),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ControllerConfig {
+    pub loop_hz: u32,
+    pub dac: DacConfig,
+    pub motor: MotorConstants,
+    pub encoder_nm_per_count: u32,
+    pub preload: PreloadCalibration,
+    /// Usable preload window (N): below it contact is unreliable, above it the motor blocks.
+    pub preload_min_n: f32,
+    pub preload_max_n: f32,
+    /// Drive frequency for coarse motion (Hz).
+    pub drive_freq_hz: f32,
+    /// Largest peak-to-peak drive voltage the controller commands.
+    pub max_drive_v: f32,
+    /// Share of the model's no-load speed / stall acceleration the profile may use.
+    pub speed_fraction: f32,
+    pub accel_fraction: f32,
+    /// Position → speed feedback gain (1/s).
+    pub kp_per_s: f32,
+    /// Load-estimate integrator gain (N per nm·s).
+    pub ki_n_per_nm_s: f32,
+    pub feedforward: bool,
+    /// Hand-off to the static fine mode within this distance of the target (nm).
+    pub fine_window_nm: f32,
+    /// Fraction of the position error the fine loop corrects per period.
+    pub fine_gain: f32,
+    /// On-target window and settle time (as PI's ONT?).
+    pub on_target_window_nm: i64,
+    pub settle_time_s: f32,
+    pub following_error_limit_nm: f32,
+    pub stall_time_s: f32,
+    pub encoder_jump_counts: i32,
+    pub travel_min_nm: i64,
+    pub travel_max_nm: i64,
+}
+
+/// What the board gives each period.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Inputs {
+    /// Timer count in quadrature mode (16 bit, wraps).
+    pub encoder_raw: u16,
+    /// Preload cell ADC word.
+    pub preload_word: u16,
+    /// Encoder index seen since the last period.
+    pub index: bool,
+}
+
+/// What the board applies during the next period.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Outputs {
+    pub dac: [[u16; 2]; DAC_SAMPLES_PER_STEP],
+    pub amp_enable: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Mode {
+    Coarse,
+    /// Waiting for the sine to ramp out before static control starts.
+    FineEntering,
+    Fine,
+}
+
+pub struct Controller {
+    cfg: ControllerConfig,
+    generator: QuadratureGenerator,
+    encoder: Option<Encoder>,
+    preload: PreloadCell,
+    profile: Profile,
+    state: State,
+    mode: Mode,
+    servo: bool,
+    referenced: bool,
+    dt_s: f32,
+    thrust_bias_n: f32,
+    integral_v: f32,
+    fine_offset_v: f32,
+    speed_nm_s: f32,
+    on_target_s: f32,
+    stall_s: f32,
+    drive_v: f32,
+    max_following_error_nm: f32,
+    accel_ref_nm_s2: f32,
+    fine_cmd_v: f32,
+    fine_rate_v_s: f32,
+    fine_settle: u32,
+}
+
+/// Highest speed from which a stop at `accel` ends within `distance` (v = √(2·a·d)).
+fn profile_speed(accel: f32, distance: f32) -> f32 {
+    let x = 2.0 * accel * distance;
+    if x.is_nan() || x <= 0.0 {
+        return 0.0;
+    }
+    // Newton from a power-of-two start: six steps reach f32 precision for any positive x.
+    let mut r = f32::from_bits((x.to_bits() >> 1) + 0x1fc0_0000);
+    for _ in 0..6 {
+        r = 0.5 * (r + x / r);
+    }
+    r
+}
+
+impl Controller {
+    pub fn new(cfg: ControllerConfig) -> Result<Self, CommandError> {
+        let samples = cfg.dac.sample_rate_hz / cfg.loop_hz.max(1);
+        if samples as usize != DAC_SAMPLES_PER_STEP || cfg.loop_hz == 0 {
+            return Err(CommandError::InvalidValue);
+        }
+        let mut generator = QuadratureGenerator::new(cfg.dac);
+        generator.set_frequency_hz(cfg.drive_freq_hz);
+        Ok(Controller {
+            generator,
+            encoder: None,
+            preload: PreloadCell::new(cfg.preload),
+            profile: Profile::at_rest(0),
+            state: State::Idle,
+            mode: Mode::Coarse,
+            servo: false,
+            referenced: false,
+            dt_s: 1.0 / cfg.loop_hz as f32,
+            thrust_bias_n: 0.0,
+            integral_v: 0.0,
+            fine_offset_v: 0.0,
+            speed_nm_s: 0.0,
+            on_target_s: 0.0,
+            stall_s: 0.0,
+            drive_v: 0.0,
+            max_following_error_nm: 0.0,
+            accel_ref_nm_s2: 0.0,
+            fine_cmd_v: 0.0,
+            fine_rate_v_s: 0.0,
+            fine_settle: 0,
+            cfg,
+        })
+    }
+
+    // ---- telemetry ----
+    pub fn state(&self) -> State {
+        self.state
+    }
+    pub fn config(&self) -> &ControllerConfig {
+        &self.cfg
+    }
+    pub fn position_nm(&self) -> i64 {
+        self.encoder.map_or(0, |e| e.position_nm())
+    }
+    pub fn target_nm(&self) -> i64 {
+        self.profile.target_nm()
+    }
+    pub fn reference_nm(&self) -> i64 {
+        self.profile.position_nm()
+    }
+    pub fn preload_n(&self) -> Option<f32> {
+        self.preload.valid().then(|| self.preload.force_n())
+    }
+    pub fn servo(&self) -> bool {
+        self.servo
+    }
+    pub fn referenced(&self) -> bool {
+        self.referenced
+    }
+    pub fn drive_voltage_v(&self) -> f32 {
+        self.generator.amplitude_v()
+    }
+    pub fn drive_frequency_hz(&self) -> f32 {
+        self.generator.frequency_hz()
+    }
+    /// Common static offset of the fine mode (V).
+    pub fn fine_offset_v(&self) -> f32 {
+        self.fine_offset_v
+    }
+    pub fn fine_mode(&self) -> bool {
+        self.mode != Mode::Coarse
+    }
+    pub fn speed_nm_s(&self) -> f32 {
+        self.speed_nm_s
+    }
+    /// Largest |reference − position| since the last move command.
+    pub fn max_following_error_nm(&self) -> f32 {
+        self.max_following_error_nm
+    }
+    /// As PI's ONT?: holding within the window for the settle time.
+    pub fn on_target(&self) -> bool {
+        self.state == State::Holding && self.on_target_s >= self.cfg.settle_time_s
+    }
+
+    /// Fixed-point model at the measured preload and the given drive.
+    fn model_point(&self, volts: f32) -> Option<crate::model::ThrustPoint> {
+        let preload = self.preload_n()?;
+        Some(self.cfg.motor.point(
+            Fx::saturating_from_num(preload),
+            Fx::saturating_from_num(volts),
+            Fx::saturating_from_num(self.cfg.drive_freq_hz / 1000.0),
+        ))
+    }
+
+    /// Stall force (N) and no-load speed (mm/s) at full drive and the measured preload.
+    pub fn thrust_limits(&self) -> Option<(f32, f32)> {
+        let p = self.model_point(self.cfg.max_drive_v)?;
+        Some((p.stall_force_n().to_num(), p.no_load_speed_mm_s().to_num()))
+    }
+
+    fn check_preload(&self) -> Result<f32, CommandError> {
+        let f = self.preload_n().ok_or(CommandError::PreloadInvalid)?;
+        if f < self.cfg.preload_min_n || f > self.cfg.preload_max_n {
+            return Err(CommandError::PreloadOutOfWindow);
+        }
+        Ok(f)
+    }
+
+    // ---- commands ----
+    pub fn set_servo(&mut self, on: bool) -> Result<(), CommandError> {
+        if let State::Fault(code) = self.state {
+            return Err(CommandError::Faulted(code));
+        }
+        self.servo = on;
+        if on {
+            let here = self.position_nm();
+            self.profile.reset(here);
+            self.enter_hold();
+        } else {
+            self.state = State::Idle;
+            self.generator.ramp_to_quiet();
+        }
+        Ok(())
+    }
+
+    pub fn move_to(&mut self, target_nm: i64) -> Result<(), CommandError> {
+        if let State::Fault(code) = self.state {
+            return Err(CommandError::Faulted(code));
+        }
+        if !self.servo {
+            return Err(CommandError::ServoOff);
+        }
+        if target_nm < self.cfg.travel_min_nm || target_nm > self.cfg.travel_max_nm {
+            return Err(CommandError::OutOfTravel);
+        }
+        self.check_preload()?;
+        self.profile.set_target(target_nm);
+        self.max_following_error_nm = 0.0;
+        self.on_target_s = 0.0;
+        self.state = State::Moving;
+        if self.mode != Mode::Coarse
+            && (target_nm - self.position_nm()).abs() as f32 > self.cfg.fine_window_nm
+        {
+            self.mode = Mode::Coarse;
+        }
+        Ok(())
+    }
+
+    pub fn move_relative(&mut self, delta_nm: i64) -> Result<(), CommandError> {
+        self.move_to(self.profile.target_nm().saturating_add(delta_nm))
+    }
+
+    /// Smooth stop: decelerate along the profile and hold where it ends.
+    pub fn halt(&mut self) {
+        if matches!(self.state, State::Moving) {
+            let a = self.accel_limit_nm_s2();
+            let p = self.profile.stopping_point_nm(a);
+            self.profile.set_target(p);
+        }
+    }
+
+    /// Immediate stop: hold the present position.
+    pub fn stop(&mut self) {
+        if matches!(self.state, State::Moving | State::Holding | State::Referencing) {
+            let here = self.position_nm();
+            self.profile.reset(here);
+            self.enter_hold();
+        }
+    }
+
+    pub fn clear_fault(&mut self) {
+        if matches!(self.state, State::Fault(_)) {
+            self.state = State::Idle;
+            self.servo = false;
+            let here = self.position_nm();
+            self.profile.reset(here);
+        }
+    }
+
+    /// Declares the present position to be `position_nm` (referencing on a mark).
+    pub fn set_reference_here(&mut self, position_nm: i64) {
+        if let Some(e) = self.encoder.as_mut() {
+            e.set_position_nm(position_nm);
+        }
+        let here = self.position_nm();
+        self.profile.reset(here);
+        self.referenced = true;
+    }
+
+    /// Moves open loop toward negative positions until the encoder index is seen, then sets the
+    /// position there to zero.
+    pub fn start_referencing(&mut self) -> Result<(), CommandError> {
+        if let State::Fault(code) = self.state {
+            return Err(CommandError::Faulted(code));
+        }
+        self.check_preload()?;
+        self.state = State::Referencing;
+        self.mode = Mode::Coarse;
+        self.referenced = false;
+        Ok(())
+    }
+
+    fn enter_hold(&mut self) {
+        self.state = State::Holding;
+        self.on_target_s = 0.0;
+    }
+
+    fn trip(&mut self, code: FaultCode) {
+        self.state = State::Fault(code);
+        self.servo = false;
+        self.mode = Mode::Coarse;
+        self.generator.ramp_to_quiet();
+    }
+
+    fn speed_limit_nm_s(&self) -> f32 {
+        self.thrust_limits().map_or(0.0, |(_, v0)| v0 * 1e6 * self.cfg.speed_fraction)
+    }
+
+    /// Braking limit: reverse drive at full voltage brakes with at least the stall force.
+    fn accel_limit_nm_s2(&self) -> f32 {
+        let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>().max(1e-3);
+        let stall = self.thrust_limits().map_or(0.0, |(f, _)| f);
+        // Leave the load estimate's share of the thrust for the load.
+        let usable = (stall - self.thrust_bias_n.abs()).max(0.1 * stall);
+        usable / mass * 1e9 * self.cfg.accel_fraction
+    }
+
+    /// Speeding-up limit at the profile's present speed: the model's thrust at that speed and
+    /// full drive, less the load estimate, over the moving mass. No acceleration the motor
+    /// cannot deliver at the measured preload.
+    fn speedup_limit_nm_s2(&self) -> f32 {
+        let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>().max(1e-3);
+        let Some(p) = self.model_point(self.cfg.max_drive_v) else { return 0.0 };
+        let v = self.profile.velocity_nm_s();
+        let thrust: f32 = p.thrust_n(Fx::saturating_from_num(v.abs() * 1e-6)).to_num();
+        let load = v.signum() * self.thrust_bias_n;
+        let stall: f32 = p.stall_force_n().to_num();
+        let usable = (thrust - load.max(0.0)).max(0.05 * stall);
+        usable / mass * 1e9 * self.cfg.accel_fraction
+    }
+
+    /// One control period.
+    pub fn step(&mut self, inputs: &Inputs) -> Outputs {
+        self.sense(inputs);
+        self.supervise();
+        match self.state {
+            State::Moving | State::Holding => self.regulate(),
+            State::Referencing => self.reference(inputs.index),
+            State::Idle | State::Fault(_) => self.generator.ramp_to_quiet(),
+        }
+        let mut out = Outputs { dac: [[0; 2]; DAC_SAMPLES_PER_STEP], amp_enable: false };
+        if !matches!(self.state, State::Fault(_)) {
+            self.generator.reset_slew();
+        }
+        if let State::Fault(_) = self.state {
+            // Safe within this very period: ramp every output to mid-range in these samples,
+            // then the amplifier is disabled.
+            self.generator.quiet_within(DAC_SAMPLES_PER_STEP as u32);
+            self.generator.fill(&mut out.dac);
+            out.amp_enable = false;
+        } else {
+            self.generator.fill(&mut out.dac);
+            out.amp_enable = true;
+        }
+        out
+    }
+
+    fn sense(&mut self, inputs: &Inputs) {
+        self.preload.update(inputs.preload_word);
+        match self.encoder.as_mut() {
+            None => {
+                self.encoder = Some(Encoder::new(inputs.encoder_raw, self.cfg.encoder_nm_per_count));
+                self.profile.reset(0);
+            }
+            Some(e) => {
+                let delta = e.update(inputs.encoder_raw);
+                let v = delta as f32 * e.nm_per_count() as f32 / self.dt_s;
+                // 2 ms speed filter: the encoder quantum (50 nm per 100 µs) is 0.5 mm/s.
+                self.speed_nm_s += 0.05 * (v - self.speed_nm_s);
+            }
+        }
+    }
+
+    fn supervise(&mut self) {
+        if let State::Fault(_) = self.state {
+            return;
+        }
+        let active = matches!(self.state, State::Moving | State::Holding | State::Referencing);
+        if let Some(e) = self.encoder {
+            if e.last_delta().abs() > self.cfg.encoder_jump_counts {
+                self.trip(FaultCode::EncoderJump);
+                return;
+            }
+        }
+        if !active {
+            return;
+        }
+        match self.check_preload() {
+            Err(CommandError::PreloadInvalid) => return self.trip(FaultCode::PreloadSensor),
+            Err(_) => return self.trip(FaultCode::PreloadOutOfWindow),
+            Ok(_) => {}
+        }
+        let err = (self.profile.position_nm() - self.position_nm()) as f32;
+        self.max_following_error_nm = self.max_following_error_nm.max(err.abs());
+        if err.abs() > self.cfg.following_error_limit_nm {
+            return self.trip(FaultCode::FollowingError);
+        }
+        // Stall/slip: a driven foot whose slider does not follow.
+        let commanded = self.profile.velocity_nm_s();
+        let driving = self.mode == Mode::Coarse && self.drive_v > 0.5 * self.cfg.max_drive_v;
+        if driving
+            && commanded.abs() > 100_000.0
+            && self.speed_nm_s * commanded.signum() < 0.2 * commanded.abs()
+        {
+            self.stall_s += self.dt_s;
+            if self.stall_s >= self.cfg.stall_time_s {
+                self.trip(FaultCode::Stall);
+            }
+        } else {
+            self.stall_s = 0.0;
+        }
+    }
+
+    fn regulate(&mut self) {
+        let v_max = self.speed_limit_nm_s();
+        let v_before = self.profile.velocity_nm_s();
+        self.profile.step(self.dt_s, v_max, self.speedup_limit_nm_s2(), self.accel_limit_nm_s2());
+        self.accel_ref_nm_s2 = (self.profile.velocity_nm_s() - v_before) / self.dt_s;
+        if self.state == State::Moving && self.profile.done() {
+            self.enter_hold();
+        }
+        let pos = self.position_nm();
+        let err = (self.profile.position_nm() - pos) as f32;
+        let to_target = (self.profile.target_nm() - pos) as f32;
+
+        // On-target bookkeeping.
+        if self.state == State::Holding
+            && (self.profile.target_nm() - pos).abs() <= self.cfg.on_target_window_nm
+        {
+            self.on_target_s += self.dt_s;
+        } else {
+            self.on_target_s = 0.0;
+        }
+
+        let fine_room_nm = self.fine_room_v() * self.cfg.motor.fine_nm_per_v.to_num::<f32>();
+        match self.mode {
+            Mode::Coarse => {
+                if self.profile.done() && to_target.abs() < self.cfg.fine_window_nm.min(0.8 * fine_room_nm) {
+                    self.mode = Mode::FineEntering;
+                    self.generator.set_amplitude_v(0.0);
+                    self.drive_v = 0.0;
+                    return;
+                }
+                self.coarse(err);
+            }
+            Mode::FineEntering => {
+                self.generator.set_amplitude_v(0.0);
+                if self.generator.amplitude_v() == 0.0 {
+                    self.mode = Mode::Fine;
+                    self.fine_cmd_v = self.fine_offset_v;
+                    self.fine_rate_v_s = 0.0;
+                    self.fine_settle = 0;
+                }
+            }
+            Mode::Fine => {
+                if to_target.abs() > fine_room_nm.max(self.cfg.fine_window_nm) * 1.5 {
+                    self.mode = Mode::Coarse;
+                    return;
+                }
+                self.fine(err);
+            }
+        }
+    }
+
+    /// Fine mode: the foot sticks to the slider and carries it by the static stroke. The offset
+    /// moves along its own trapezoid (acceleration kept well below what static friction can
+    /// give the moving mass); a new correction is measured only once the last one has been
+    /// carried out and seen by the encoder (step and settle).
+    fn fine(&mut self, err_nm: f32) {
+        let nm_per_v = self.cfg.motor.fine_nm_per_v.to_num::<f32>().max(1e-3);
+        let room = self.fine_room_v();
+        let at_rest = self.fine_rate_v_s == 0.0 && (self.fine_cmd_v - self.fine_offset_v).abs() < 1e-3;
+        if at_rest {
+            self.fine_settle += 1;
+            let half_count = 0.5 * self.encoder.map_or(50, |e| e.nm_per_count()) as f32;
+            if self.fine_settle >= 4 && err_nm.abs() > half_count {
+                self.fine_cmd_v = (self.fine_offset_v + err_nm / nm_per_v).clamp(-room, room);
+                self.fine_settle = 0;
+            }
+        } else {
+            self.fine_settle = 0;
+        }
+        // Trapezoid toward the commanded offset.
+        let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>().max(1e-3);
+        let grip_n = self.preload.force_n().max(0.0) * self.cfg.motor.mu.to_num::<f32>();
+        let accel_v_s2 = (0.25 * grip_n / mass / (nm_per_v * 1e-9)).max(1.0);
+        let rate_max_v_s: f32 = 20_000.0;
+        let d = self.fine_cmd_v - self.fine_offset_v;
+        let dt = self.dt_s;
+        let mut rate_des = d.signum() * rate_max_v_s.min(profile_speed(accel_v_s2, d.abs()));
+        if d.abs() < 1e-4 {
+            rate_des = 0.0;
+        }
+        self.fine_rate_v_s += (rate_des - self.fine_rate_v_s).clamp(-accel_v_s2 * dt, accel_v_s2 * dt);
+        let next = self.fine_offset_v + self.fine_rate_v_s * dt;
+        if (self.fine_cmd_v - next) * d <= 0.0 {
+            self.fine_offset_v = self.fine_cmd_v;
+            self.fine_rate_v_s = 0.0;
+        } else {
+            self.fine_offset_v = next;
+        }
+        self.generator.ramp_static_offsets_v([self.fine_offset_v; 2], DAC_SAMPLES_PER_STEP as u32);
+    }
+
+    /// Largest common static offset (V) that keeps both stacks in range.
+    fn fine_room_v(&self) -> f32 {
+        let d = &self.cfg.dac;
+        (d.mid_v() - d.min_v).min(d.max_v - d.mid_v())
+    }
+
+    fn coarse(&mut self, err_nm: f32) {
+        let v_ref = self.profile.velocity_nm_s();
+        let v_cmd = v_ref + self.cfg.kp_per_s * err_nm;
+        let mut dir: i8 = if v_cmd >= 0.0 { 1 } else { -1 };
+        let (stall, v0) = self.thrust_limits().unwrap_or((0.0, 0.0));
+        let volts = if self.cfg.feedforward {
+            // Load estimate: thrust along +x the position error says is missing.
+            self.thrust_bias_n =
+                (self.thrust_bias_n + self.cfg.ki_n_per_nm_s * err_nm * self.dt_s).clamp(-stall, stall);
+            // Inertia of the profile's acceleration is part of the load (F = M·a).
+            let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>();
+            let load_along = f32::from(dir) * (self.thrust_bias_n + mass * self.accel_ref_nm_s2 * 1e-9);
+            let p = self.cfg.motor.voltage_for(
+                Fx::saturating_from_num(self.preload.force_n()),
+                Fx::saturating_from_num(self.cfg.drive_freq_hz / 1000.0),
+                Fx::saturating_from_num(v_cmd.abs() * 1e-6),
+                Fx::saturating_from_num(load_along),
+                Fx::saturating_from_num(self.cfg.max_drive_v),
+            );
+            p.to_num::<f32>()
+        } else {
+            // No model: voltage proportional to the speed demand, plus an integral on the error.
+            let v_full = (v0 * 1e6).max(1.0);
+            self.integral_v = (self.integral_v
+                + self.cfg.ki_n_per_nm_s * err_nm * self.dt_s * self.cfg.max_drive_v / stall.max(0.1))
+            .clamp(-self.cfg.max_drive_v, self.cfg.max_drive_v);
+            let signed = self.cfg.kp_per_s * err_nm / v_full * self.cfg.max_drive_v + self.integral_v;
+            dir = if signed >= 0.0 { 1 } else { -1 };
+            signed.abs().min(self.cfg.max_drive_v)
+        };
+        self.drive_v = volts;
+        // While the sine runs the foot slides anyway: bring the static offset back to centre.
+        let recentre = 10.0 * self.dt_s * self.fine_room_v();
+        self.fine_offset_v -= self.fine_offset_v.clamp(-recentre, recentre);
+        self.fine_rate_v_s = 0.0;
+        self.generator.ramp_static_offsets_v([self.fine_offset_v; 2], DAC_SAMPLES_PER_STEP as u32);
+        self.generator.set_direction(dir);
+        self.generator.set_frequency_hz(self.cfg.drive_freq_hz);
+        self.generator.set_amplitude_v(volts);
+    }
+
+    fn reference(&mut self, index: bool) {
+        if index {
+            self.generator.set_amplitude_v(0.0);
+            self.set_reference_here(0);
+            self.enter_hold();
+            return;
+        }
+        self.generator.set_direction(-1);
+        self.generator.set_frequency_hz(self.cfg.drive_freq_hz);
+        self.generator.set_amplitude_v(0.5 * self.cfg.max_drive_v);
+        self.drive_v = 0.5 * self.cfg.max_drive_v;
+    }
+}

@@ -1,0 +1,231 @@
+//! Quadrature sine generator: a u32 phase accumulator and the sine table make the DAC words for
+//! both stacks, a quarter period apart. Frequency changes keep the phase continuous; amplitude and
+//! the static (DC) offsets slew at a bounded rate; a direction change ramps the amplitude to zero,
+//! flips the quarter-period offset and ramps back, so no command makes a step in the output.
+
+use crate::trig::sin_turn_q30;
+
+/// DAC and amplifier: volts at the amplifier output per DAC word, and the allowed output range.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DacConfig {
+    /// Amplifier output at DAC word 4095 (the DAC's full scale), volts.
+    pub full_scale_v: f32,
+    /// Output range no command can leave, volts.
+    pub min_v: f32,
+    pub max_v: f32,
+    /// DAC sample rate (Hz).
+    pub sample_rate_hz: u32,
+    /// Allowed drive frequency range (Hz).
+    pub min_freq_hz: f32,
+    pub max_freq_hz: f32,
+    /// Largest amplitude or offset change per sample, volts (slew limit).
+    pub slew_v_per_sample: f32,
+}
+
+impl DacConfig {
+    pub const DAC_MAX_WORD: u16 = 4095;
+
+    /// Volts at the amplifier output → DAC word in 1/65536 of a word (Q16), clamped to the range.
+    fn volts_to_q16(&self, v: f32) -> i64 {
+        let v = v.clamp(self.min_v, self.max_v);
+        let words = v / self.full_scale_v * f32::from(Self::DAC_MAX_WORD);
+        (words * 65536.0) as i64
+    }
+    pub fn mid_v(&self) -> f32 {
+        0.5 * (self.min_v + self.max_v)
+    }
+    /// Words to volts (for telemetry and tests).
+    pub fn word_to_volts(&self, w: u16) -> f32 {
+        f32::from(w) * self.full_scale_v / f32::from(Self::DAC_MAX_WORD)
+    }
+}
+
+/// Quadrature generator state. All internal quantities are DAC words in Q16.
+#[derive(Debug, Clone)]
+pub struct QuadratureGenerator {
+    cfg: DacConfig,
+    phase: u32,
+    step: u32,
+    freq_hz: f32,
+    direction: i8,
+    pending_direction: i8,
+    amp_q16: i64,
+    amp_target_q16: i64,
+    mid_q16: i64,
+    static_q16: [i64; 2],
+    static_target_q16: [i64; 2],
+    /// Per-sample step of a timed static ramp (0: use the slew limit).
+    static_step_q16: [i64; 2],
+    slew_q16: i64,
+    min_q16: i64,
+    max_q16: i64,
+}
+
+impl QuadratureGenerator {
+    pub fn new(cfg: DacConfig) -> Self {
+        let mid = cfg.volts_to_q16(cfg.mid_v());
+        let mut g = QuadratureGenerator {
+            cfg,
+            phase: 0,
+            step: 0,
+            freq_hz: 0.0,
+            direction: 1,
+            pending_direction: 1,
+            amp_q16: 0,
+            amp_target_q16: 0,
+            mid_q16: mid,
+            static_q16: [0; 2],
+            static_target_q16: [0; 2],
+            static_step_q16: [0; 2],
+            slew_q16: 1,
+            min_q16: cfg.volts_to_q16(cfg.min_v),
+            max_q16: cfg.volts_to_q16(cfg.max_v),
+        };
+        g.reset_slew();
+        g.set_frequency_hz(cfg.min_freq_hz);
+        g
+    }
+
+    pub fn config(&self) -> &DacConfig {
+        &self.cfg
+    }
+
+    /// Sets the drive frequency, clamped to the allowed range; the phase continues.
+    pub fn set_frequency_hz(&mut self, f: f32) {
+        let f = if f.is_finite() {
+            f.clamp(self.cfg.min_freq_hz, self.cfg.max_freq_hz)
+        } else {
+            self.cfg.min_freq_hz
+        };
+        self.freq_hz = f;
+        let rate = u64::from(self.cfg.sample_rate_hz.max(1));
+        self.step = ((f64::from(f) * 4_294_967_296.0) as u64 / rate) as u32;
+    }
+
+    pub fn frequency_hz(&self) -> f32 {
+        self.freq_hz
+    }
+
+    /// Peak-to-peak sine amplitude (V) to ramp to, clamped so mid ± amplitude/2 stays in range.
+    pub fn set_amplitude_v(&mut self, volts_pp: f32) {
+        let half_v = if volts_pp.is_finite() { 0.5 * volts_pp.max(0.0) } else { 0.0 };
+        let room = (self.cfg.mid_v() - self.cfg.min_v).min(self.cfg.max_v - self.cfg.mid_v());
+        let half = half_v.min(room);
+        self.amp_target_q16 =
+            (half / self.cfg.full_scale_v * f32::from(DacConfig::DAC_MAX_WORD) * 65536.0) as i64;
+    }
+
+    /// Present peak-to-peak amplitude (V), after slewing.
+    pub fn amplitude_v(&self) -> f32 {
+        2.0 * self.amp_q16 as f32 / 65536.0 * self.cfg.full_scale_v / f32::from(DacConfig::DAC_MAX_WORD)
+    }
+
+    /// +1: channel 2 lags channel 1 by a quarter period (foot moves +x); −1: it leads.
+    pub fn set_direction(&mut self, direction: i8) {
+        self.pending_direction = if direction < 0 { -1 } else { 1 };
+    }
+
+    pub fn direction(&self) -> i8 {
+        self.direction
+    }
+
+    /// Static offsets from mid-range on each stack (V), for fine positioning while the sine is
+    /// off; clamped to the output range.
+    pub fn set_static_offsets_v(&mut self, offsets: [f32; 2]) {
+        self.static_step_q16 = [0; 2];
+        let mid = self.cfg.mid_v();
+        for (t, o) in self.static_target_q16.iter_mut().zip(offsets) {
+            let o = if o.is_finite() { o } else { 0.0 };
+            *t = self.cfg.volts_to_q16(mid + o) - self.mid_q16;
+        }
+    }
+
+    /// Static offsets reached by a straight ramp spread evenly over the next `samples` samples,
+    /// so the foot moves at a constant speed within a control period (fine positioning: a
+    /// stuck foot must not jerk the slider).
+    pub fn ramp_static_offsets_v(&mut self, offsets: [f32; 2], samples: u32) {
+        self.set_static_offsets_v(offsets);
+        let n = i64::from(samples.max(1));
+        for ((step, target), now) in
+            self.static_step_q16.iter_mut().zip(self.static_target_q16).zip(self.static_q16)
+        {
+            *step = ((target - now).abs() + n - 1) / n;
+        }
+    }
+
+    /// Both outputs at mid-range with no sine: where every ramp ends in the safe state.
+    pub fn is_quiet(&self) -> bool {
+        self.amp_q16 == 0 && self.static_q16 == [0, 0]
+    }
+
+    /// Sets every target to zero (sine off, no offsets); the outputs ramp there.
+    pub fn ramp_to_quiet(&mut self) {
+        self.amp_target_q16 = 0;
+        self.static_target_q16 = [0, 0];
+        self.static_step_q16 = [0; 2];
+    }
+
+    /// Ramps every output to mid-range within `samples` samples (the fault path): the slew rate
+    /// is raised just enough, and restored by [`Self::reset_slew`].
+    pub fn quiet_within(&mut self, samples: u32) {
+        self.ramp_to_quiet();
+        let largest = self.static_q16.iter().fold(self.amp_q16.abs(), |m, s| m.max(s.abs()));
+        let needed = largest / i64::from(samples.max(1)) + 1;
+        self.slew_q16 = self.slew_q16.max(needed);
+    }
+
+    /// Back to the configured slew rate.
+    pub fn reset_slew(&mut self) {
+        self.slew_q16 = ((self.cfg.slew_v_per_sample / self.cfg.full_scale_v
+            * f32::from(DacConfig::DAC_MAX_WORD))
+            * 65536.0) as i64;
+        self.slew_q16 = self.slew_q16.max(1);
+    }
+
+    fn slew(value: &mut i64, target: i64, step: i64) {
+        *value += (target - *value).clamp(-step, step);
+    }
+
+    /// The next sample for both channels.
+    pub fn next_words(&mut self) -> [u16; 2] {
+        // A direction change waits for the amplitude to reach zero, so ch2 never jumps.
+        let target = if self.pending_direction != self.direction { 0 } else { self.amp_target_q16 };
+        Self::slew(&mut self.amp_q16, target, self.slew_q16);
+        if self.amp_q16 == 0 && self.pending_direction != self.direction {
+            self.direction = self.pending_direction;
+        }
+        for ((s, t), step) in self.static_q16.iter_mut().zip(self.static_target_q16).zip(self.static_step_q16)
+        {
+            let limit = if step > 0 { step.min(self.slew_q16) } else { self.slew_q16 };
+            Self::slew(s, t, limit);
+        }
+        let quarter: u32 = 1 << 30;
+        let ph2 = if self.direction > 0 {
+            self.phase.wrapping_sub(quarter)
+        } else {
+            self.phase.wrapping_add(quarter)
+        };
+        let mut out = [0u16; 2];
+        for (i, (o, ph)) in out.iter_mut().zip([self.phase, ph2]).enumerate() {
+            let s = i64::from(sin_turn_q30(ph));
+            let dc = self.static_q16.get(i).copied().unwrap_or(0);
+            let v = self.mid_q16 + dc + ((self.amp_q16 * s) >> 30);
+            let v = v.clamp(self.min_q16, self.max_q16);
+            *o = ((v + 32768) >> 16).clamp(0, i64::from(DacConfig::DAC_MAX_WORD)) as u16;
+        }
+        self.phase = self.phase.wrapping_add(self.step);
+        out
+    }
+
+    /// Fills a buffer of samples (e.g. one half of the circular DMA buffer).
+    pub fn fill(&mut self, buf: &mut [[u16; 2]]) {
+        for s in buf.iter_mut() {
+            *s = self.next_words();
+        }
+    }
+
+    /// Lowest and highest word the configured range allows (for tests and supervision).
+    pub fn word_limits(&self) -> (u16, u16) {
+        (((self.min_q16 + 32768) >> 16) as u16, ((self.max_q16 + 32768) >> 16) as u16)
+    }
+}
