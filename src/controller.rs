@@ -87,6 +87,8 @@ pub struct ControllerConfig {
     /// Load-estimate integrator gain (N per nm·s).
     pub ki_n_per_nm_s: f32,
     pub feedforward: bool,
+    /// Least speed command while approaching the target after the profile has ended (nm/s).
+    pub approach_speed_nm_s: f32,
     /// Hand-off to the static fine mode within this distance of the target (nm).
     pub fine_window_nm: f32,
     /// Fraction of the position error the fine loop corrects per period.
@@ -150,6 +152,10 @@ pub struct Controller {
     fine_cmd_v: f32,
     fine_rate_v_s: f32,
     fine_settle: u32,
+    /// Load observer: thrust along +x the model says the motor gives, less M·a (N).
+    observed_bias_n: f32,
+    prev_speed_nm_s: f32,
+    decel_nm_s2: f32,
 }
 
 /// Highest speed from which a stop at `accel` ends within `distance` (v = √(2·a·d)).
@@ -196,6 +202,9 @@ impl Controller {
             fine_cmd_v: 0.0,
             fine_rate_v_s: 0.0,
             fine_settle: 0,
+            observed_bias_n: 0.0,
+            prev_speed_nm_s: 0.0,
+            decel_nm_s2: 1.0,
             cfg,
         })
     }
@@ -279,6 +288,9 @@ impl Controller {
         if let State::Fault(code) = self.state {
             return Err(CommandError::Faulted(code));
         }
+        if on {
+            self.check_preload()?;
+        }
         self.servo = on;
         if on {
             let here = self.position_nm();
@@ -303,6 +315,9 @@ impl Controller {
         }
         self.check_preload()?;
         self.profile.set_target(target_nm);
+        // The braking rate is fixed for the whole move: a braking curve that changed under the
+        // profile's feet would arrive with speed left over.
+        self.decel_nm_s2 = self.accel_limit_nm_s2();
         self.max_following_error_nm = 0.0;
         self.on_target_s = 0.0;
         self.state = State::Moving;
@@ -380,8 +395,14 @@ impl Controller {
         self.generator.ramp_to_quiet();
     }
 
+    /// Highest profile speed: the model's speed at full drive against the estimated load in the
+    /// direction of travel, with margin.
     fn speed_limit_nm_s(&self) -> f32 {
-        self.thrust_limits().map_or(0.0, |(_, v0)| v0 * 1e6 * self.cfg.speed_fraction)
+        let Some(p) = self.model_point(self.cfg.max_drive_v) else { return 0.0 };
+        let dir = if self.profile.target_nm() >= self.profile.position_nm() { 1.0 } else { -1.0 };
+        let load = (dir * self.thrust_bias_n).max(0.0);
+        let v: f32 = p.speed_at_load_mm_s(Fx::saturating_from_num(load)).to_num();
+        v * 1e6 * self.cfg.speed_fraction
     }
 
     /// Braking limit: reverse drive at full voltage brakes with at least the stall force.
@@ -389,7 +410,7 @@ impl Controller {
         let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>().max(1e-3);
         let stall = self.thrust_limits().map_or(0.0, |(f, _)| f);
         // Leave the load estimate's share of the thrust for the load.
-        let usable = (stall - self.thrust_bias_n.abs()).max(0.1 * stall);
+        let usable = (stall - self.thrust_bias_n.abs()).max(0.3 * stall);
         usable / mass * 1e9 * self.cfg.accel_fraction
     }
 
@@ -435,6 +456,7 @@ impl Controller {
 
     fn sense(&mut self, inputs: &Inputs) {
         self.preload.update(inputs.preload_word);
+        self.prev_speed_nm_s = self.speed_nm_s;
         match self.encoder.as_mut() {
             None => {
                 self.encoder = Some(Encoder::new(inputs.encoder_raw, self.cfg.encoder_nm_per_count));
@@ -473,14 +495,15 @@ impl Controller {
         if err.abs() > self.cfg.following_error_limit_nm {
             return self.trip(FaultCode::FollowingError);
         }
-        // Stall/slip: a driven foot whose slider does not follow.
-        let commanded = self.profile.velocity_nm_s();
+        // Stall/slip: the foot is driven hard but the slider does not move the driven way
+        // (commanded foot speed against encoder speed).
+        let dir = f32::from(self.generator.direction());
         let driving = self.mode == Mode::Coarse && self.drive_v > 0.5 * self.cfg.max_drive_v;
-        if driving
-            && commanded.abs() > 100_000.0
-            && self.speed_nm_s * commanded.signum() < 0.2 * commanded.abs()
-        {
-            self.stall_s += self.dt_s;
+        let foot_speed = self.thrust_limits().map_or(0.0, |(_, v0)| v0 * 1e6);
+        if driving && dir * self.speed_nm_s < 0.1 * foot_speed {
+            // Sliding backwards under full drive is the clearest sign: count it five times faster.
+            let backwards = dir * self.speed_nm_s < -0.1 * foot_speed;
+            self.stall_s += if backwards { 5.0 * self.dt_s } else { self.dt_s };
             if self.stall_s >= self.cfg.stall_time_s {
                 self.trip(FaultCode::Stall);
             }
@@ -490,9 +513,16 @@ impl Controller {
     }
 
     fn regulate(&mut self) {
-        let v_max = self.speed_limit_nm_s();
+        let mut v_max = self.speed_limit_nm_s();
+        // A reference running away from a slider that cannot follow (an unknown load, a preload
+        // change) only builds following error: past 2 µm of lag the profile waits for the slider.
+        let lag =
+            (self.profile.position_nm() - self.position_nm()) as f32 * self.profile.velocity_nm_s().signum();
+        if lag > 2_000.0 {
+            v_max = v_max.min((self.speed_nm_s * self.profile.velocity_nm_s().signum()).max(0.0));
+        }
         let v_before = self.profile.velocity_nm_s();
-        self.profile.step(self.dt_s, v_max, self.speedup_limit_nm_s2(), self.accel_limit_nm_s2());
+        self.profile.step(self.dt_s, v_max, self.speedup_limit_nm_s2(), self.decel_nm_s2);
         self.accel_ref_nm_s2 = (self.profile.velocity_nm_s() - v_before) / self.dt_s;
         if self.state == State::Moving && self.profile.done() {
             self.enter_hold();
@@ -552,7 +582,13 @@ impl Controller {
             self.fine_settle += 1;
             let half_count = 0.5 * self.encoder.map_or(50, |e| e.nm_per_count()) as f32;
             if self.fine_settle >= 4 && err_nm.abs() > half_count {
-                self.fine_cmd_v = (self.fine_offset_v + err_nm / nm_per_v).clamp(-room, room);
+                let wanted = self.fine_offset_v + err_nm / nm_per_v;
+                if wanted.abs() > room {
+                    // Out of static stroke: take the step with the sine, which recentres.
+                    self.mode = Mode::Coarse;
+                    return;
+                }
+                self.fine_cmd_v = wanted;
                 self.fine_settle = 0;
             }
         } else {
@@ -588,13 +624,33 @@ impl Controller {
 
     fn coarse(&mut self, err_nm: f32) {
         let v_ref = self.profile.velocity_nm_s();
-        let v_cmd = v_ref + self.cfg.kp_per_s * err_nm;
+        let mut v_cmd = v_ref + self.cfg.kp_per_s * err_nm;
+        if self.profile.done() {
+            // Final approach outside the fine range: below ~0.2 mm/s the model's crawl speeds are
+            // not worth trusting, so approach at a speed the motor surely makes.
+            v_cmd = err_nm.signum() * v_cmd.abs().max(self.cfg.approach_speed_nm_s);
+        }
         let mut dir: i8 = if v_cmd >= 0.0 { 1 } else { -1 };
         let (stall, v0) = self.thrust_limits().unwrap_or((0.0, 0.0));
         let volts = if self.cfg.feedforward {
-            // Load estimate: thrust along +x the position error says is missing.
-            self.thrust_bias_n =
-                (self.thrust_bias_n + self.cfg.ki_n_per_nm_s * err_nm * self.dt_s).clamp(-stall, stall);
+            // Load observer (the thrust model run forwards): what the applied drive pushes at the
+            // measured speed, less what accelerated the mass, is what the load took.
+            let d = f32::from(self.generator.direction());
+            let applied = self.model_point(self.generator.amplitude_v()).map_or(0.0, |p| {
+                p.thrust_n(Fx::saturating_from_num(d * self.speed_nm_s * 1e-6)).to_num::<f32>()
+            });
+            let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>();
+            let accel = (self.speed_nm_s - self.prev_speed_nm_s) / self.dt_s * 1e-9;
+            let sample = d * applied - mass * accel;
+            // Observe only while the drive pushes the way the slider moves at a fair speed: the
+            // model is least certain when braking and near standstill (stick).
+            if d * self.speed_nm_s > 200_000.0 && self.drive_v > 0.2 * self.cfg.max_drive_v {
+                self.observed_bias_n += 0.005 * (sample - self.observed_bias_n);
+            }
+            // The integral on the position error corrects what the model gets wrong.
+            self.integral_v =
+                (self.integral_v + self.cfg.ki_n_per_nm_s * err_nm * self.dt_s).clamp(-stall, stall);
+            self.thrust_bias_n = (self.observed_bias_n + self.integral_v).clamp(-stall, stall);
             // Inertia of the profile's acceleration is part of the load (F = M·a).
             let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>();
             let load_along = f32::from(dir) * (self.thrust_bias_n + mass * self.accel_ref_nm_s2 * 1e-9);

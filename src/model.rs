@@ -211,13 +211,18 @@ impl ThrustPoint {
 
     /// Speed at which the thrust falls to zero (bisection between standstill and the foot speed).
     pub fn no_load_speed_mm_s(&self) -> Fx {
-        if self.stall_force_n() <= Fx::ZERO {
+        self.speed_at_load_mm_s(Fx::ZERO)
+    }
+
+    /// Forward speed at which the thrust equals an opposing `load_n` (0 when the load stalls it).
+    pub fn speed_at_load_mm_s(&self, load_n: Fx) -> Fx {
+        if self.stall_force_n() <= load_n {
             return Fx::ZERO;
         }
         let (mut lo, mut hi) = (Fx::ZERO, self.foot_speed_mm_s);
         for _ in 0..20 {
             let mid = (lo + hi) / 2;
-            if self.thrust_n(mid) > Fx::ZERO {
+            if self.thrust_n(mid) > load_n {
                 lo = mid;
             } else {
                 hi = mid;

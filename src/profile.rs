@@ -67,7 +67,11 @@ impl Profile {
         let a_down = decel_nm_s2.max(1.0);
         let rem = (self.target_nm - self.pos_nm) as f32 - self.frac_nm;
         let dir = if rem >= 0.0 { 1.0 } else { -1.0 };
-        let v_des = dir * v_max_nm_s.max(0.0).min(sqrt_f32(2.0 * a_down * rem.abs()));
+        // Discrete braking curve: from v, braking at a each step of dt covers exactly the
+        // remaining distance when v = √(2·a·d + (a·dt/2)²) − a·dt/2.
+        let half = 0.5 * a_down * dt_s;
+        let v_stop = sqrt_f32(2.0 * a_down * rem.abs() + half * half) - half;
+        let v_des = dir * v_max_nm_s.max(0.0).min(v_stop.max(0.0));
         let speeding_up = v_des * self.vel_nm_s >= 0.0 && v_des.abs() > self.vel_nm_s.abs();
         let a = if speeding_up { a_up } else { a_down };
         let dv = (v_des - self.vel_nm_s).clamp(-a * dt_s, a * dt_s);

@@ -52,5 +52,40 @@ fn steady(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, plant, steady);
+/// One `Controller::step` (the firmware's 10 kHz entry) while moving, and the fixed-point model
+/// against the f64 model on the same point.
+fn core(c: &mut Criterion) {
+    use host_sim::moves::ready_board;
+    use host_sim::sil::{controller_config, motor_constants};
+    use piezo_drive::Fx;
+    let p = Params::prototype();
+    let mut sil = ready_board(&p, controller_config(&p), 16.0).expect("board");
+    sil.controller.move_to(5_000_000).expect("move");
+    sil.run_until(0.05, |_| false);
+    let inputs = sil.inputs();
+    let mut g = c.benchmark_group("core");
+    g.throughput(Throughput::Elements(1));
+    g.bench_function("controller_step_moving", |b| {
+        b.iter(|| black_box(sil.controller.step(black_box(&inputs))))
+    });
+    let k = motor_constants(&p);
+    let fx = k.point(Fx::from_num(16), Fx::from_num(100), Fx::from_num(1.5));
+    g.bench_function("thrust_fixed_point", |b| b.iter(|| black_box(fx.thrust_n(black_box(Fx::from_num(1))))));
+    let m = ThrustModel::new(&p, OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 });
+    g.bench_function("thrust_f64", |b| b.iter(|| black_box(m.thrust_n(black_box(1e-3)))));
+    g.bench_function("inverse_fixed_point", |b| {
+        b.iter(|| {
+            black_box(k.voltage_for(
+                Fx::from_num(16),
+                Fx::from_num(2.2),
+                black_box(Fx::from_num(1.5)),
+                Fx::from_num(1),
+                Fx::from_num(100),
+            ))
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, plant, steady, core);
 criterion_main!(benches);

@@ -1,6 +1,7 @@
 //! host-sim: the physical plant of the shaking-beam piezo motor, its steady-state thrust model,
 //! and the command-line tools around them.
 pub mod curve;
+pub mod moves;
 pub mod paper;
 pub mod params;
 pub mod plant;

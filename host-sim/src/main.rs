@@ -4,7 +4,7 @@ use anyhow::{bail, Result};
 use clap::{Parser, Subcommand};
 use host_sim::params::{FrictionModel, Params};
 use host_sim::steady::OperatingPoint;
-use host_sim::{curve, paper, plot};
+use host_sim::{curve, moves, paper, plot};
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -43,8 +43,28 @@ enum Command {
         #[arg(long)]
         json: bool,
     },
-    /// The main job: the prototype's thrust–velocity characteristic at the paper's test point,
-    /// printed as a table and drawn to demo.svg.
+    /// One closed-loop move from 0: the firmware's controller against the plant.
+    Move {
+        /// Target position (µm).
+        #[arg(long, allow_negative_numbers = true)]
+        to_um: f64,
+        /// Preload force F0 (N).
+        #[arg(long, default_value_t = 16.0, allow_negative_numbers = true)]
+        preload_n: f64,
+        /// Constant load opposing the motion (N), as a hanging weight.
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        load_n: f64,
+        /// Switch the thrust-model feedforward off (plain feedback).
+        #[arg(long)]
+        no_feedforward: bool,
+        #[arg(long)]
+        json: bool,
+        #[arg(long, value_name = "FILE.svg")]
+        plot: Option<PathBuf>,
+    },
+    /// The main job: a scripted closed-loop sequence (long move, 10 µm / 1 µm / 100 nm steps, a
+    /// move against 2 N, a preload change while holding, an out-of-window preload refused),
+    /// printed as a table and drawn to demo.svg; then the thrust–velocity characteristic.
     Demo {
         #[arg(long, value_name = "FILE.svg", default_value = "demo.svg")]
         plot: PathBuf,
@@ -189,15 +209,66 @@ fn run(cli: Cli) -> Result<()> {
                 println!("{} of {} rows pass", rows.len() - failed, rows.len());
             }
         }
+        Command::Move { to_um, preload_n, load_n, no_feedforward, json, plot: plot_path } => {
+            if !to_um.is_finite() || to_um.abs() > 50_000.0 {
+                bail!("--to-um must be a position within ±50000 µm, got {to_um}");
+            }
+            if !(preload_n.is_finite() && preload_n > 0.0 && preload_n <= 60.0) {
+                bail!("--preload-n must be in (0, 60] N, got {preload_n}");
+            }
+            if !(load_n.is_finite() && load_n.abs() <= 20.0) {
+                bail!("--load-n must be within ±20 N, got {load_n}");
+            }
+            eprintln!("simulating the move (controller at 10 kHz against the plant at 1 MHz)...");
+            let r = moves::single_move(&params, to_um, preload_n, load_n, !no_feedforward)?;
+            if let Some(path) = &plot_path {
+                plot::motion(
+                    &r.trace,
+                    &format!("move to {to_um} µm, F0 {preload_n} N, load {load_n} N"),
+                    path,
+                )?;
+            }
+            if json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+            } else {
+                println!("move 0 → {to_um} µm at F0 {preload_n} N against {load_n} N");
+                match &r.fault {
+                    Some(f) => println!("fault/refusal: {} (code {})", f.text, f.code),
+                    None => println!(
+                        "settle time {}, final error {:.1} nm, overshoot {:.1} nm, max following error {:.3} µm",
+                        r.settle_time_s.map_or("never".into(), |t| format!("{t:.4} s")),
+                        r.final_error_nm,
+                        r.overshoot_nm,
+                        r.max_following_error_um
+                    ),
+                }
+            }
+        }
         Command::Demo { plot: plot_path } => {
-            let op = OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 };
+            println!("Shaking-beam piezo motor, closed loop: the firmware's controller against the plant");
+            let (rows, trace) = moves::demo(&params, |label| eprintln!("demo: {label}..."))?;
             println!(
-                "Shaking-beam piezo motor, prototype parameters: thrust–velocity at the paper's test point"
+                "{:<38} {:>12} {:>12} {:>14} {:>14} {:>12}  result",
+                "step", "target µm", "settle s", "final err nm", "overshoot nm", "max FE µm"
             );
-            let c = curve::compute(&params, op, 1, 8, 0.9, progress("demo"));
-            print_curve(&c);
-            plot::thrust_velocity(&c, &plot_path)?;
+            for r in &rows {
+                println!(
+                    "{:<38} {:>12.3} {:>12} {:>14.1} {:>14.1} {:>12.3}  {}",
+                    r.step,
+                    r.target_um,
+                    r.settle_time_s.map_or("-".into(), |t| format!("{t:.4}")),
+                    r.final_error_nm,
+                    r.overshoot_nm,
+                    r.max_following_error_um,
+                    r.result
+                );
+            }
+            plot::motion(&trace, "demo sequence: position and drive", &plot_path)?;
             println!("plot written to {}", plot_path.display());
+            let op = OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 };
+            println!("\nThrust–velocity characteristic at the paper's test point:");
+            let c = curve::compute(&params, op, 1, 6, 0.9, progress("curve"));
+            print_curve(&c);
         }
     }
     Ok(())

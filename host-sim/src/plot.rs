@@ -52,3 +52,66 @@ pub fn thrust_velocity(curve: &Curve, path: &Path) -> Result<()> {
     root.present().map_err(|e| anyhow!("plot: {e}"))?;
     Ok(())
 }
+
+/// Position and reference against time (µm vs s), and the drive voltage on a second panel.
+pub fn motion(trace: &[crate::moves::TracePoint], title: &str, path: &Path) -> Result<()> {
+    let root = SVGBackend::new(path, (900, 640)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow!("plot: {e}"))?;
+    let (upper, lower) = root.split_vertically(440);
+    let t_max = trace.last().map_or(1.0, |t| t.time_s).max(1e-3);
+    let (mut y_min, mut y_max) = trace.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| {
+        (lo.min(t.position_nm.min(t.reference_nm)), hi.max(t.position_nm.max(t.reference_nm)))
+    });
+    if !y_min.is_finite() {
+        (y_min, y_max) = (0.0, 1.0);
+    }
+    let pad = ((y_max - y_min) * 0.05).max(50.0);
+    let mut chart = ChartBuilder::on(&upper)
+        .caption(title, ("sans-serif", 20))
+        .margin(15)
+        .x_label_area_size(35)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..t_max, (y_min - pad) * 1e-3..(y_max + pad) * 1e-3)
+        .map_err(|e| anyhow!("plot: {e}"))?;
+    chart.configure_mesh().y_desc("position (µm)").draw().map_err(|e| anyhow!("plot: {e}"))?;
+    chart
+        .draw_series(LineSeries::new(
+            trace.iter().map(|t| (t.time_s, t.reference_nm * 1e-3)),
+            BLUE.stroke_width(1),
+        ))
+        .map_err(|e| anyhow!("plot: {e}"))?
+        .label("profile reference")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+    chart
+        .draw_series(LineSeries::new(
+            trace.iter().map(|t| (t.time_s, t.position_nm * 1e-3)),
+            RED.stroke_width(2),
+        ))
+        .map_err(|e| anyhow!("plot: {e}"))?
+        .label("slider (plant)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::UpperLeft)
+        .draw()
+        .map_err(|e| anyhow!("plot: {e}"))?;
+    let mut volts = ChartBuilder::on(&lower)
+        .margin(15)
+        .x_label_area_size(40)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..t_max, 0.0..105.0)
+        .map_err(|e| anyhow!("plot: {e}"))?;
+    volts
+        .configure_mesh()
+        .x_desc("time (s)")
+        .y_desc("drive (V p-p)")
+        .draw()
+        .map_err(|e| anyhow!("plot: {e}"))?;
+    volts
+        .draw_series(LineSeries::new(trace.iter().map(|t| (t.time_s, t.drive_v)), GREEN.stroke_width(1)))
+        .map_err(|e| anyhow!("plot: {e}"))?;
+    root.present().map_err(|e| anyhow!("plot: {e}"))?;
+    Ok(())
+}

@@ -1,0 +1,240 @@
+//! Closed-loop moves in the loop: one move (`host-sim move`) and the scripted demo.
+
+use crate::params::Params;
+use crate::plant::ExternalLoad;
+use crate::sil::{controller_config, Sil};
+use piezo_drive::controller::{ControllerConfig, State};
+use serde::Serialize;
+
+/// Outcome of one move, measured on the plant's true slider position.
+#[derive(Debug, Clone, Serialize)]
+pub struct MoveResult {
+    pub from_um: f64,
+    pub to_um: f64,
+    pub preload_n: f64,
+    pub load_n: f64,
+    /// Time from the command until the slider is within ±1 count of the target for good
+    /// (null when it never settled).
+    pub settle_time_s: Option<f64>,
+    /// When the controller's ONT? first said on target.
+    pub on_target_time_s: Option<f64>,
+    pub final_error_nm: f64,
+    pub overshoot_nm: f64,
+    pub max_following_error_um: f64,
+    /// Fault code and text, null when none.
+    pub fault: Option<FaultReport>,
+    #[serde(skip)]
+    pub trace: Vec<TracePoint>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct FaultReport {
+    pub code: u8,
+    pub text: &'static str,
+}
+
+#[derive(Debug, Clone, Copy)]
+pub struct TracePoint {
+    pub time_s: f64,
+    pub position_nm: f64,
+    pub reference_nm: f64,
+    pub drive_v: f64,
+}
+
+/// A simulated board at rest with servo on, preload settled.
+pub fn ready_board(p: &Params, cfg: ControllerConfig, preload_n: f64) -> anyhow::Result<Sil> {
+    let mut sil = Sil::new(p, cfg, preload_n, 7)?;
+    // Let the force-cell filter settle before the servo is switched on.
+    sil.run_until(0.05, |_| false);
+    sil.controller.set_servo(true).map_err(|e| anyhow::anyhow!("servo on refused: {e:?}"))?;
+    Ok(sil)
+}
+
+/// Commands a move to `to_nm` and runs until settled for `hold_s` (or `max_s` passed).
+pub fn run_move(sil: &mut Sil, to_nm: i64, max_s: f64, hold_s: f64) -> MoveResult {
+    let count_nm = sil.plant.params().sensors.encoder_resolution_m * 1e9;
+    let from_nm = sil.plant.slider_position_m() * 1e9;
+    let t0 = sil.time_s();
+    let mut result = MoveResult {
+        from_um: from_nm * 1e-3,
+        to_um: to_nm as f64 * 1e-3,
+        preload_n: sil.plant.preload_force_n(),
+        load_n: -sil.plant.load.constant_n,
+        settle_time_s: None,
+        on_target_time_s: None,
+        final_error_nm: f64::NAN,
+        overshoot_nm: 0.0,
+        max_following_error_um: 0.0,
+        fault: None,
+        trace: Vec::new(),
+    };
+    if let Err(e) = sil.controller.move_to(to_nm) {
+        result.fault = Some(FaultReport { code: 0, text: command_error_text(e) });
+        result.final_error_nm = from_nm - to_nm as f64;
+        return result;
+    }
+    let dir = if to_nm as f64 >= from_nm { 1.0 } else { -1.0 };
+    let mut inside_since: Option<f64> = None;
+    let mut k = 0u64;
+    while sil.time_s() - t0 < max_s {
+        sil.period();
+        k += 1;
+        let t = sil.time_s() - t0;
+        let pos = sil.plant.slider_position_m() * 1e9;
+        let err = pos - to_nm as f64;
+        result.overshoot_nm = result.overshoot_nm.max(dir * err);
+        let c = &sil.controller;
+        result.max_following_error_um =
+            result.max_following_error_um.max(c.max_following_error_nm() as f64 * 1e-3);
+        if k.is_multiple_of(10) {
+            result.trace.push(TracePoint {
+                time_s: t,
+                position_nm: pos,
+                reference_nm: c.reference_nm() as f64,
+                drive_v: c.drive_voltage_v() as f64,
+            });
+        }
+        if result.on_target_time_s.is_none() && c.on_target() {
+            result.on_target_time_s = Some(t);
+        }
+        if let State::Fault(code) = c.state() {
+            result.fault = Some(FaultReport { code: code as u8, text: code.text() });
+            break;
+        }
+        if err.abs() <= count_nm {
+            let since = *inside_since.get_or_insert(t);
+            if t - since >= hold_s {
+                break;
+            }
+        } else {
+            inside_since = None;
+        }
+    }
+    result.settle_time_s = inside_since;
+    result.final_error_nm = sil.plant.slider_position_m() * 1e9 - to_nm as f64;
+    result
+}
+
+pub fn command_error_text(e: piezo_drive::controller::CommandError) -> &'static str {
+    use piezo_drive::controller::CommandError::*;
+    match e {
+        Faulted(code) => code.text(),
+        ServoOff => "servo is off",
+        OutOfTravel => "target outside the travel range",
+        PreloadInvalid => "preload sensor reading invalid",
+        PreloadOutOfWindow => "preload outside the usable window",
+        InvalidValue => "invalid value",
+    }
+}
+
+/// One closed-loop move from 0 at a preload and an opposing load.
+pub fn single_move(
+    p: &Params,
+    to_um: f64,
+    preload_n: f64,
+    load_n: f64,
+    feedforward: bool,
+) -> anyhow::Result<MoveResult> {
+    let mut cfg = controller_config(p);
+    cfg.feedforward = feedforward;
+    let mut sil = ready_board(p, cfg, preload_n)?;
+    let to_nm = (to_um * 1e3).round() as i64;
+    sil.set_load(ExternalLoad::opposing(load_n, if to_nm >= 0 { 1 } else { -1 }));
+    let distance_m = to_um.abs() * 1e-6;
+    let max_s = 2.0 + 5.0 * distance_m / 2.0e-3;
+    Ok(run_move(&mut sil, to_nm, max_s, 0.05))
+}
+
+/// One row of the demo table.
+#[derive(Debug, Clone, Serialize)]
+pub struct DemoRow {
+    pub step: &'static str,
+    pub target_um: f64,
+    pub result: String,
+    pub settle_time_s: Option<f64>,
+    pub final_error_nm: f64,
+    pub overshoot_nm: f64,
+    pub max_following_error_um: f64,
+}
+
+/// The scripted demo: long move, 10 µm / 1 µm / 100 nm steps, a move against 2 N, a preload
+/// change while holding, and an out-of-window preload that must be refused.
+pub fn demo(p: &Params, mut progress: impl FnMut(&str)) -> anyhow::Result<(Vec<DemoRow>, Vec<TracePoint>)> {
+    let cfg = controller_config(p);
+    let mut sil = ready_board(p, cfg, 16.0)?;
+    let mut rows = Vec::new();
+    let mut trace = Vec::new();
+    let mut offset_s = 0.0;
+    let mut record =
+        |label: &'static str, r: MoveResult, rows: &mut Vec<DemoRow>, trace: &mut Vec<TracePoint>| {
+            let outcome = match &r.fault {
+                Some(f) => format!("refused/fault: {}", f.text),
+                None if r.settle_time_s.is_some() => "settled ±1 count".to_string(),
+                None => "did not settle".to_string(),
+            };
+            for t in &r.trace {
+                trace.push(TracePoint { time_s: t.time_s + offset_s, ..*t });
+            }
+            offset_s += r.trace.last().map_or(0.0, |t| t.time_s);
+            rows.push(DemoRow {
+                step: label,
+                target_um: r.to_um,
+                result: outcome,
+                settle_time_s: r.settle_time_s,
+                final_error_nm: r.final_error_nm,
+                overshoot_nm: r.overshoot_nm,
+                max_following_error_um: r.max_following_error_um,
+            });
+        };
+    progress("long move to 1 mm");
+    let r = run_move(&mut sil, 1_000_000, 3.0, 0.05);
+    record("long move 1 mm", r, &mut rows, &mut trace);
+    for (label, delta) in [("step +10 µm", 10_000), ("step +1 µm", 1_000), ("step +100 nm", 100)] {
+        progress(label);
+        let target = sil.controller.target_nm() + delta;
+        let r = run_move(&mut sil, target, 1.0, 0.05);
+        record(label, r, &mut rows, &mut trace);
+    }
+    progress("move against 2 N");
+    sil.set_load(ExternalLoad::opposing(2.0, -1));
+    let r = run_move(&mut sil, 500_000, 3.0, 0.05);
+    record("move −0.51 mm against 2 N", r, &mut rows, &mut trace);
+    sil.set_load(ExternalLoad::default());
+    progress("preload change while holding");
+    let before = sil.plant.slider_position_m();
+    sil.plant.set_preload_n(12.0);
+    sil.run_until(0.2, |_| false);
+    let drift_nm = (sil.plant.slider_position_m() - before) * 1e9;
+    rows.push(DemoRow {
+        step: "preload 16 → 12 N while holding",
+        target_um: sil.controller.target_nm() as f64 * 1e-3,
+        result: match sil.controller.state() {
+            State::Holding => {
+                format!("held (preload reads {:.2} N)", sil.controller.preload_n().unwrap_or(f32::NAN))
+            }
+            s => format!("{s:?}"),
+        },
+        settle_time_s: None,
+        final_error_nm: sil.plant.slider_position_m() * 1e9 - sil.controller.target_nm() as f64,
+        overshoot_nm: drift_nm.abs(),
+        max_following_error_um: 0.0,
+    });
+    progress("out-of-window preload");
+    sil.controller.set_servo(false).ok();
+    sil.plant.set_preload_n(2.0);
+    sil.run_until(0.1, |_| false);
+    let refused = sil.controller.set_servo(true).err().or_else(|| sil.controller.move_to(0).err());
+    rows.push(DemoRow {
+        step: "preload 2 N: servo on + move refused",
+        target_um: 0.0,
+        result: match refused {
+            Some(e) => format!("refused: {}", command_error_text(e)),
+            None => "ACCEPTED (unexpected)".to_string(),
+        },
+        settle_time_s: None,
+        final_error_nm: f64::NAN,
+        overshoot_nm: 0.0,
+        max_following_error_um: 0.0,
+    });
+    Ok((rows, trace))
+}

@@ -1,0 +1,138 @@
+//! The firmware's controller in the loop with the plant (10 kHz control, 12-bit DAC, 16-bit
+//! encoder counter, one-period output delay), against physical limits.
+
+use host_sim::moves::{ready_board, run_move};
+use host_sim::params::Params;
+use host_sim::plant::ExternalLoad;
+use host_sim::sil::{controller_config, Sil};
+use host_sim::steady::{OperatingPoint, ThrustModel};
+use piezo_drive::controller::{CommandError, FaultCode, State};
+
+fn board(preload_n: f64) -> (Params, Sil) {
+    let p = Params::prototype();
+    let sil = ready_board(&p, controller_config(&p), preload_n).unwrap();
+    (p, sil)
+}
+
+/// Distance over the highest no-load speed reachable within 100 V and 0.5–2.2 kHz, plus the time
+/// to reach that speed at stall thrust (f64 steady-state model, no controller involved).
+fn physical_limit_s(p: &Params, preload_n: f64, distance_m: f64) -> f64 {
+    let best = (0..=34)
+        .map(|i| {
+            ThrustModel::new(
+                p,
+                OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz: 500.0 + 50.0 * i as f64 },
+            )
+        })
+        .max_by(|a, b| a.no_load_speed_m_s().total_cmp(&b.no_load_speed_m_s()))
+        .unwrap();
+    let v0 = best.no_load_speed_m_s();
+    distance_m / v0 + p.slider.mass_kg * v0 / best.stall_force_n()
+}
+
+fn assert_stays(sil: &mut Sil, target_nm: f64, seconds: f64) {
+    let count_nm = 50.0;
+    let end = sil.time_s() + seconds;
+    while sil.time_s() < end {
+        sil.period();
+        let err = sil.plant.slider_position_m() * 1e9 - target_nm;
+        assert!(err.abs() <= count_nm, "left the ±1 count window: {err:.1} nm");
+    }
+}
+
+#[test]
+fn one_millimetre_move_settles_within_one_count_near_the_physical_limit() {
+    let (p, mut sil) = board(16.0);
+    let r = run_move(&mut sil, 1_000_000, 3.0, 0.05);
+    assert!(r.fault.is_none(), "{:?}", r.fault);
+    let settle = r.settle_time_s.expect("settled");
+    let limit = physical_limit_s(&p, 16.0, 1e-3);
+    eprintln!("1 mm: settle {settle:.4} s, physical limit {limit:.4} s, overshoot {:.1} nm", r.overshoot_nm);
+    assert!(settle <= 1.25 * limit, "settle {settle} s > 1.25 × {limit} s");
+    assert!(r.overshoot_nm < 200.0, "overshoot {} nm", r.overshoot_nm);
+    assert!(r.final_error_nm.abs() <= 50.0);
+    assert_stays(&mut sil, 1e6, 0.1);
+    assert!(sil.controller.on_target());
+}
+
+#[test]
+fn small_steps_of_100_nm_and_1_um_settle_within_one_count() {
+    for step_nm in [100i64, 1_000, -100, -1_000] {
+        let (_, mut sil) = board(16.0);
+        let r = run_move(&mut sil, step_nm, 1.0, 0.05);
+        assert!(r.fault.is_none() && r.settle_time_s.is_some(), "{step_nm} nm: {r:?}");
+        assert_stays(&mut sil, step_nm as f64, 0.05);
+    }
+}
+
+#[test]
+fn a_move_against_2_n_still_settles_within_one_count() {
+    let (_, mut sil) = board(16.0);
+    sil.set_load(ExternalLoad::opposing(2.0, 1));
+    let r = run_move(&mut sil, 300_000, 3.0, 0.05);
+    assert!(r.fault.is_none(), "{:?}", r.fault);
+    assert!(r.settle_time_s.is_some() && r.final_error_nm.abs() <= 50.0, "{r:?}");
+    assert_stays(&mut sil, 300_000.0, 0.05);
+}
+
+/// Runs until the controller faults; returns the outputs of that very period.
+fn until_fault(sil: &mut Sil, max_s: f64) -> (FaultCode, piezo_drive::controller::Outputs) {
+    let end = sil.time_s() + max_s;
+    while sil.time_s() < end {
+        let out = sil.period();
+        if let State::Fault(code) = sil.controller.state() {
+            return (code, out);
+        }
+    }
+    panic!("no fault within {max_s} s");
+}
+
+fn assert_safe(out: &piezo_drive::controller::Outputs) {
+    assert!(!out.amp_enable, "amplifier still enabled");
+    let mid = (50.0f64 / 100.0 * 4095.0).round() as i32;
+    let last = out.dac[out.dac.len() - 1];
+    for w in last {
+        assert!((i32::from(w) - mid).abs() <= 1, "DAC not at mid-range at the end of the period: {last:?}");
+    }
+}
+
+#[test]
+fn a_load_above_stall_trips_stall_detection_and_leaves_the_drive_safe() {
+    let (_, mut sil) = board(16.0);
+    // 6 N > the 4.3 N stall force at 16 N.
+    sil.set_load(ExternalLoad::opposing(6.0, 1));
+    sil.controller.move_to(300_000).unwrap();
+    let (code, out) = until_fault(&mut sil, 1.0);
+    assert_eq!(code, FaultCode::Stall);
+    assert_safe(&out);
+    // Cleared only deliberately; until then every command is refused.
+    assert_eq!(sil.controller.move_to(0), Err(CommandError::Faulted(FaultCode::Stall)));
+    sil.controller.clear_fault();
+    assert_eq!(sil.controller.state(), State::Idle);
+}
+
+#[test]
+fn an_encoder_jump_trips_its_fault_and_leaves_the_drive_safe() {
+    let (_, mut sil) = board(16.0);
+    sil.controller.move_to(200_000).unwrap();
+    sil.run_until(0.02, |_| false);
+    sil.encoder_offset_counts += 5_000;
+    let (code, out) = until_fault(&mut sil, 0.01);
+    assert_eq!(code, FaultCode::EncoderJump);
+    assert_safe(&out);
+}
+
+#[test]
+fn a_preload_below_the_window_is_refused() {
+    let p = Params::prototype();
+    let mut sil = Sil::new(&p, controller_config(&p), 2.0, 1).unwrap();
+    sil.run_until(0.05, |_| false);
+    assert_eq!(sil.controller.set_servo(true), Err(CommandError::PreloadOutOfWindow));
+    assert_eq!(sil.controller.move_to(1000), Err(CommandError::ServoOff));
+    // Dropping the preload while holding faults the drive into its safe state.
+    let (_, mut sil) = board(16.0);
+    sil.plant.set_preload_n(2.0);
+    let (code, out) = until_fault(&mut sil, 0.5);
+    assert_eq!(code, FaultCode::PreloadOutOfWindow);
+    assert_safe(&out);
+}
