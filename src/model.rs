@@ -6,7 +6,7 @@
 //! The motor's amplitudes come from [`MotorConstants`], a frequency table derived from the
 //! physical parameters by host-sim (eqs. 5 and 7 with the amplifier's gain).
 
-use crate::trig::{acos, cos, sin};
+use crate::trig::{acos, cos, sin, taylor_sin};
 use crate::Fx;
 
 /// Number of frequency points in the motor table.
@@ -35,22 +35,6 @@ pub struct MotorConstants {
 /// θ = 2πk/256, as Q16. Built at compile time from the exact relation (physics.md §2).
 static MEAN_CONTACT_Q16: [i32; 257] = mean_contact_table();
 
-const fn const_sin(x: f64) -> f64 {
-    // Valid for x in [-π/2, π/2].
-    let x2 = x * x;
-    let mut term = x;
-    let mut sum = x;
-    let mut n = 1.0;
-    let mut i = 0;
-    while i < 12 {
-        term = -term * x2 / ((n + 1.0) * (n + 2.0));
-        sum += term;
-        n += 2.0;
-        i += 1;
-    }
-    sum
-}
-
 // Runs at compile time: an index out of range fails the build, not the device.
 #[allow(clippy::indexing_slicing)]
 const fn mean_contact_table() -> [i32; 257] {
@@ -60,11 +44,11 @@ const fn mean_contact_table() -> [i32; 257] {
         let theta = core::f64::consts::TAU * k as f64 / 256.0;
         let h = 0.5 * theta; // in [0, π]
         let s = if h <= core::f64::consts::FRAC_PI_2 {
-            const_sin(h)
+            taylor_sin(h)
         } else {
-            const_sin(core::f64::consts::PI - h)
+            taylor_sin(core::f64::consts::PI - h)
         };
-        let c = const_sin(core::f64::consts::FRAC_PI_2 - h);
+        let c = taylor_sin(core::f64::consts::FRAC_PI_2 - h);
         let g = (2.0 * s - theta * c) / core::f64::consts::TAU;
         t[k] = (g * 65536.0 + 0.5) as i32;
         k += 1;

@@ -15,8 +15,8 @@ const TABLE_FRAC: u32 = 30;
 /// sin(2πk/1024) · 2³⁰ for k = 0..=1024 (the last entry repeats the first for interpolation).
 static SINE_Q30: [i32; TABLE_LEN + 1] = sine_table();
 
-const fn taylor_sin(x: f64) -> f64 {
-    // x in [-π/2, π/2]: 12 terms reach far below 1e-15.
+/// sin by its Taylor series, for compile-time tables; x in [-π/2, π/2] (12 terms: < 1e-15).
+pub(crate) const fn taylor_sin(x: f64) -> f64 {
     let x2 = x * x;
     let mut term = x;
     let mut sum = x;
