@@ -545,7 +545,10 @@ impl Controller {
             Mode::Coarse => {
                 let nm_per_v = self.cfg.motor.fine_nm_per_v.to_num::<f32>().max(1e-3);
                 let fits = (self.fine_offset_v + to_target / nm_per_v).abs() < 0.9 * self.fine_room_v();
-                if self.profile.done() && fits && to_target.abs() < self.cfg.fine_window_nm.min(0.8 * fine_room_nm) {
+                if self.profile.done()
+                    && fits
+                    && to_target.abs() < self.cfg.fine_window_nm.min(0.8 * fine_room_nm)
+                {
                     self.mode = Mode::FineEntering;
                     self.generator.set_amplitude_v(0.0);
                     self.drive_v = 0.0;
