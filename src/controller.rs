@@ -86,7 +86,16 @@ pub struct ControllerConfig {
     pub kp_per_s: f32,
     /// Load-estimate integrator gain (N per nm·s).
     pub ki_n_per_nm_s: f32,
+    /// Thrust-model feedforward on; off leaves plain PI feedback from position error to volts.
     pub feedforward: bool,
+    /// Plain-feedback gains (feedforward off): volts per nm of error and per nm·s.
+    pub fb_kp_v_per_nm: f32,
+    pub fb_ki_v_per_nm_s: f32,
+    /// Known steady load the motor pushes against along +x (N; e.g. 2.0 for a 2 N weight pulling
+    /// toward −x). The load observer starts from it and refines it while moving.
+    pub expected_load_n: f32,
+    /// Past this lag behind the profile the profile waits for the slider (nm).
+    pub profile_wait_lag_nm: f32,
     /// Least speed command while approaching the target after the profile has ended (nm/s).
     pub approach_speed_nm_s: f32,
     /// Hand-off to the static fine mode within this distance of the target (nm).
@@ -141,6 +150,9 @@ pub struct Controller {
     referenced: bool,
     dt_s: f32,
     thrust_bias_n: f32,
+    /// Thrust-model branch: load correction integrated from position error (N).
+    integral_n: f32,
+    /// Plain-feedback branch: integral term (V, signed along +x).
     integral_v: f32,
     fine_offset_v: f32,
     speed_nm_s: f32,
@@ -190,7 +202,8 @@ impl Controller {
             servo: false,
             referenced: false,
             dt_s: 1.0 / cfg.loop_hz as f32,
-            thrust_bias_n: 0.0,
+            thrust_bias_n: cfg.expected_load_n,
+            integral_n: 0.0,
             integral_v: 0.0,
             fine_offset_v: 0.0,
             speed_nm_s: 0.0,
@@ -202,7 +215,7 @@ impl Controller {
             fine_cmd_v: 0.0,
             fine_rate_v_s: 0.0,
             fine_settle: 0,
-            observed_bias_n: 0.0,
+            observed_bias_n: cfg.expected_load_n,
             prev_speed_nm_s: 0.0,
             decel_nm_s2: 1.0,
             cfg,
@@ -515,10 +528,10 @@ impl Controller {
     fn regulate(&mut self) {
         let mut v_max = self.speed_limit_nm_s();
         // A reference running away from a slider that cannot follow (an unknown load, a preload
-        // change) only builds following error: past 2 µm of lag the profile waits for the slider.
+        // change) only builds following error: past some lag the profile waits for the slider.
         let lag =
             (self.profile.position_nm() - self.position_nm()) as f32 * self.profile.velocity_nm_s().signum();
-        if lag > 2_000.0 {
+        if lag > self.cfg.profile_wait_lag_nm {
             v_max = v_max.min((self.speed_nm_s * self.profile.velocity_nm_s().signum()).max(0.0));
         }
         let v_before = self.profile.velocity_nm_s();
@@ -636,7 +649,7 @@ impl Controller {
             v_cmd = err_nm.signum() * v_cmd.abs().max(self.cfg.approach_speed_nm_s);
         }
         let mut dir: i8 = if v_cmd >= 0.0 { 1 } else { -1 };
-        let (stall, v0) = self.thrust_limits().unwrap_or((0.0, 0.0));
+        let stall = self.thrust_limits().map_or(0.0, |(stall, _)| stall);
         let volts = if self.cfg.feedforward {
             // Load observer (the thrust model run forwards): what the applied drive pushes at the
             // measured speed, less what accelerated the mass, is what the load took.
@@ -653,9 +666,9 @@ impl Controller {
                 self.observed_bias_n += 0.005 * (sample - self.observed_bias_n);
             }
             // The integral on the position error corrects what the model gets wrong.
-            self.integral_v =
-                (self.integral_v + self.cfg.ki_n_per_nm_s * err_nm * self.dt_s).clamp(-stall, stall);
-            self.thrust_bias_n = (self.observed_bias_n + self.integral_v).clamp(-stall, stall);
+            self.integral_n =
+                (self.integral_n + self.cfg.ki_n_per_nm_s * err_nm * self.dt_s).clamp(-stall, stall);
+            self.thrust_bias_n = (self.observed_bias_n + self.integral_n).clamp(-stall, stall);
             // Inertia of the profile's acceleration is part of the load (F = M·a).
             let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>();
             let load_along = f32::from(dir) * (self.thrust_bias_n + mass * self.accel_ref_nm_s2 * 1e-9);
@@ -668,14 +681,19 @@ impl Controller {
             );
             p.to_num::<f32>()
         } else {
-            // No model: voltage proportional to the speed demand, plus an integral on the error.
-            let v_full = (v0 * 1e6).max(1.0);
-            self.integral_v = (self.integral_v
-                + self.cfg.ki_n_per_nm_s * err_nm * self.dt_s * self.cfg.max_drive_v / stall.max(0.1))
-            .clamp(-self.cfg.max_drive_v, self.cfg.max_drive_v);
-            let signed = self.cfg.kp_per_s * err_nm / v_full * self.cfg.max_drive_v + self.integral_v;
+            // No model: PI from position error straight to signed volts. The integral stops
+            // while the output is saturated the same way (anti-windup).
+            let max_v = self.cfg.max_drive_v;
+            let p_term = self.cfg.fb_kp_v_per_nm * err_nm;
+            let unclamped = p_term + self.integral_v;
+            let pushing_limit = unclamped.abs() >= max_v && unclamped * err_nm > 0.0;
+            if !pushing_limit {
+                self.integral_v =
+                    (self.integral_v + self.cfg.fb_ki_v_per_nm_s * err_nm * self.dt_s).clamp(-max_v, max_v);
+            }
+            let signed = p_term + self.integral_v;
             dir = if signed >= 0.0 { 1 } else { -1 };
-            signed.abs().min(self.cfg.max_drive_v)
+            signed.abs().min(max_v)
         };
         self.drive_v = volts;
         // While the sine runs the foot slides anyway: bring the static offset back to centre.

@@ -5,13 +5,16 @@
 //! - [`sensors`]: encoder unwrapping, preload force cell;
 //! - [`model`]: fixed-point steady-state thrust model and its inverse (the feedforward);
 //! - [`profile`]: online trapezoidal motion profile;
-//! - [`controller`]: state machine, position control, supervision; one entry point `step`.
+//! - [`controller`]: state machine, position control, supervision; one entry point `step`;
+//! - [`defaults`]: the firmware's default settings, with the baked motor table [`motor_table`].
 #![no_std]
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 
 pub mod controller;
+pub mod defaults;
 pub mod generator;
 pub mod model;
+pub mod motor_table;
 pub mod profile;
 pub mod sensors;
 pub mod trig;

@@ -57,6 +57,9 @@ enum Command {
         /// Switch the thrust-model feedforward off (plain feedback).
         #[arg(long)]
         no_feedforward: bool,
+        /// Tell the controller the load beforehand (otherwise its observer finds it while moving).
+        #[arg(long)]
+        load_known: bool,
         #[arg(long)]
         json: bool,
         #[arg(long, value_name = "FILE.svg")]
@@ -69,6 +72,9 @@ enum Command {
         #[arg(long, value_name = "FILE.svg", default_value = "demo.svg")]
         plot: PathBuf,
     },
+    /// Print the firmware's baked motor table for the parameter file, as Rust source:
+    /// `host-sim firmware-table > src/motor_table.rs` after changing the motor's parameters.
+    FirmwareTable,
 }
 
 #[derive(clap::Args)]
@@ -209,7 +215,7 @@ fn run(cli: Cli) -> Result<()> {
                 println!("{} of {} rows pass", rows.len() - failed, rows.len());
             }
         }
-        Command::Move { to_um, preload_n, load_n, no_feedforward, json, plot: plot_path } => {
+        Command::Move { to_um, preload_n, load_n, no_feedforward, load_known, json, plot: plot_path } => {
             if !to_um.is_finite() || to_um.abs() > 50_000.0 {
                 bail!("--to-um must be a position within ±50000 µm, got {to_um}");
             }
@@ -220,7 +226,8 @@ fn run(cli: Cli) -> Result<()> {
                 bail!("--load-n must be within ±20 N, got {load_n}");
             }
             eprintln!("simulating the move (controller at 10 kHz against the plant at 1 MHz)...");
-            let r = moves::single_move(&params, to_um, preload_n, load_n, !no_feedforward)?;
+            let spec = moves::MoveSpec { to_um, preload_n, load_n, feedforward: !no_feedforward, load_known };
+            let r = moves::single_move(&params, spec)?;
             if let Some(path) = &plot_path {
                 plot::motion(
                     &r.trace,
@@ -269,6 +276,13 @@ fn run(cli: Cli) -> Result<()> {
             println!("\nThrust–velocity characteristic at the paper's test point:");
             let c = curve::compute(&params, op, 1, 6, 0.9, progress("curve"));
             print_curve(&c);
+        }
+        Command::FirmwareTable => {
+            let source = cli.params.as_ref().map_or_else(
+                || "host-sim/params/prototype.toml".to_string(),
+                |path| path.display().to_string(),
+            );
+            print!("{}", host_sim::sil::motor_table_source(&params, &source));
         }
     }
     Ok(())

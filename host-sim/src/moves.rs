@@ -128,15 +128,26 @@ pub fn command_error_text(e: piezo_drive::controller::CommandError) -> &'static 
 }
 
 /// One closed-loop move from 0 at a preload and an opposing load.
-pub fn single_move(
-    p: &Params,
-    to_um: f64,
-    preload_n: f64,
-    load_n: f64,
-    feedforward: bool,
-) -> anyhow::Result<MoveResult> {
+#[derive(Debug, Clone, Copy)]
+pub struct MoveSpec {
+    pub to_um: f64,
+    pub preload_n: f64,
+    /// Load opposing the move (N).
+    pub load_n: f64,
+    /// Thrust-model feedforward on (off: plain PI feedback).
+    pub feedforward: bool,
+    /// Tell the controller the load beforehand (its `expected_load_n`) instead of leaving the
+    /// observer to find it.
+    pub load_known: bool,
+}
+
+pub fn single_move(p: &Params, spec: MoveSpec) -> anyhow::Result<MoveResult> {
+    let MoveSpec { to_um, preload_n, load_n, feedforward, load_known } = spec;
     let mut cfg = controller_config(p);
     cfg.feedforward = feedforward;
+    if load_known {
+        cfg.expected_load_n = (load_n * to_um.signum()) as f32;
+    }
     let mut sil = ready_board(p, cfg, preload_n)?;
     let to_nm = (to_um * 1e3).round() as i64;
     sil.set_load(ExternalLoad::opposing(load_n, if to_nm >= 0 { 1 } else { -1 }));

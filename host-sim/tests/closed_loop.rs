@@ -1,7 +1,7 @@
 //! The firmware's controller in the loop with the plant (10 kHz control, 12-bit DAC, 16-bit
 //! encoder counter, one-period output delay), against physical limits.
 
-use host_sim::moves::{ready_board, run_move};
+use host_sim::moves::{ready_board, run_move, single_move, MoveSpec};
 use host_sim::params::Params;
 use host_sim::plant::ExternalLoad;
 use host_sim::sil::{controller_config, Sil};
@@ -135,4 +135,24 @@ fn a_preload_below_the_window_is_refused() {
     let (code, out) = until_fault(&mut sil, 0.5);
     assert_eq!(code, FaultCode::PreloadOutOfWindow);
     assert_safe(&out);
+}
+
+/// Feedforward from the inverse thrust model against plain PI feedback, both told the 2 N load
+/// (so both plan the same feasible profile): the model supplies the drive the PI would otherwise
+/// have to build from position error.
+#[test]
+fn feedforward_halves_the_peak_following_error_against_a_2_n_load() {
+    let p = Params::prototype();
+    let spec =
+        |feedforward| MoveSpec { to_um: 1000.0, preload_n: 16.0, load_n: 2.0, feedforward, load_known: true };
+    let with = single_move(&p, spec(true)).expect("move with feedforward");
+    let without = single_move(&p, spec(false)).expect("move without feedforward");
+    assert!(with.fault.is_none() && with.final_error_nm.abs() <= 50.0, "{with:?}");
+    assert!(with.settle_time_s.is_some(), "{with:?}");
+    assert!(
+        2.0 * with.max_following_error_um <= without.max_following_error_um,
+        "peak following error with feedforward {} µm, without {} µm",
+        with.max_following_error_um,
+        without.max_following_error_um
+    );
 }

@@ -76,3 +76,29 @@ fn inverse_model_returns_the_voltage_that_gives_the_wanted_speed() {
         );
     }
 }
+
+/// The firmware's baked motor table is what host-sim derives from the shipped parameter file
+/// (regenerate with `host-sim firmware-table > src/motor_table.rs`).
+#[test]
+fn the_baked_motor_table_matches_the_prototype_parameter_file() {
+    let committed = include_str!("../../src/motor_table.rs");
+    let generated = host_sim::sil::motor_table_source(&Params::prototype(), "host-sim/params/prototype.toml");
+    assert!(
+        committed == generated,
+        "src/motor_table.rs is stale: run `cargo run -p host-sim -- firmware-table > src/motor_table.rs`"
+    );
+    assert_eq!(
+        piezo_drive::motor_table::PROTOTYPE_MOTOR,
+        host_sim::sil::motor_constants(&Params::prototype())
+    );
+}
+
+/// The firmware's defaults and the simulated board agree for the prototype file, so what the
+/// simulator proves is what the board runs.
+#[test]
+fn firmware_defaults_equal_the_simulated_board() {
+    assert_eq!(
+        piezo_drive::defaults::controller_config(),
+        host_sim::sil::controller_config(&Params::prototype())
+    );
+}
