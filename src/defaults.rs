@@ -58,7 +58,7 @@ pub fn controller_config() -> ControllerConfig {
         speed_fraction: 0.92,
         accel_fraction: 0.8,
         kp_per_s: 40.0,
-        ki_n_per_nm_s: 2e-4,
+        ki_n_per_nm_s: 1e-3,
         feedforward: true,
         // Plain PI (feedforward off): full drive at 20 µm of error, integral time 10 ms.
         fb_kp_v_per_nm: 100.0 / 20_000.0,
