@@ -25,11 +25,12 @@ pub struct DacConfig {
 impl DacConfig {
     pub const DAC_MAX_WORD: u16 = 4095;
 
-    /// Volts at the amplifier output → DAC word in 1/65536 of a word (Q16), clamped to the range.
-    fn volts_to_q16(&self, v: f32) -> i64 {
+    /// Volts at the amplifier output → DAC word in 1/65536 of a word (Q16), clamped to the range
+    /// and to the 12-bit word range (so every Q16 quantity fits an i32 with room for sums).
+    fn volts_to_q16(&self, v: f32) -> i32 {
         let v = v.clamp(self.min_v, self.max_v);
-        let words = v / self.full_scale_v * f32::from(Self::DAC_MAX_WORD);
-        (words * 65536.0) as i64
+        let words = (v / self.full_scale_v * f32::from(Self::DAC_MAX_WORD)).clamp(0.0, 4095.0);
+        (words * 65536.0) as i32
     }
     pub fn mid_v(&self) -> f32 {
         0.5 * (self.min_v + self.max_v)
@@ -40,7 +41,9 @@ impl DacConfig {
     }
 }
 
-/// Quadrature generator state. All internal quantities are DAC words in Q16.
+/// Quadrature generator state. All internal quantities are DAC words in Q16, in i32: the whole
+/// 12-bit range is below 2²⁸, so sums of mid, offset and amplitude cannot overflow, and the
+/// per-sample arithmetic stays in single 32-bit instructions on the Cortex-M4.
 #[derive(Debug, Clone)]
 pub struct QuadratureGenerator {
     cfg: DacConfig,
@@ -49,16 +52,16 @@ pub struct QuadratureGenerator {
     freq_hz: f32,
     direction: i8,
     pending_direction: i8,
-    amp_q16: i64,
-    amp_target_q16: i64,
-    mid_q16: i64,
-    static_q16: [i64; 2],
-    static_target_q16: [i64; 2],
+    amp_q16: i32,
+    amp_target_q16: i32,
+    mid_q16: i32,
+    static_q16: [i32; 2],
+    static_target_q16: [i32; 2],
     /// Per-sample step of a timed static ramp (0: use the slew limit).
-    static_step_q16: [i64; 2],
-    slew_q16: i64,
-    min_q16: i64,
-    max_q16: i64,
+    static_step_q16: [i32; 2],
+    slew_q16: i32,
+    min_q16: i32,
+    max_q16: i32,
 }
 
 impl QuadratureGenerator {
@@ -111,8 +114,8 @@ impl QuadratureGenerator {
         let half_v = if volts_pp.is_finite() { 0.5 * volts_pp.max(0.0) } else { 0.0 };
         let room = (self.cfg.mid_v() - self.cfg.min_v).min(self.cfg.max_v - self.cfg.mid_v());
         let half = half_v.min(room);
-        self.amp_target_q16 =
-            (half / self.cfg.full_scale_v * f32::from(DacConfig::DAC_MAX_WORD) * 65536.0) as i64;
+        let words = (half / self.cfg.full_scale_v * f32::from(DacConfig::DAC_MAX_WORD)).clamp(0.0, 4095.0);
+        self.amp_target_q16 = (words * 65536.0) as i32;
     }
 
     /// Present peak-to-peak amplitude (V), after slewing.
@@ -145,7 +148,7 @@ impl QuadratureGenerator {
     /// stuck foot must not jerk the slider).
     pub fn ramp_static_offsets_v(&mut self, offsets: [f32; 2], samples: u32) {
         self.set_static_offsets_v(offsets);
-        let n = i64::from(samples.max(1));
+        let n = samples.clamp(1, 1 << 16) as i32;
         for ((step, target), now) in
             self.static_step_q16.iter_mut().zip(self.static_target_q16).zip(self.static_q16)
         {
@@ -170,19 +173,19 @@ impl QuadratureGenerator {
     pub fn quiet_within(&mut self, samples: u32) {
         self.ramp_to_quiet();
         let largest = self.static_q16.iter().fold(self.amp_q16.abs(), |m, s| m.max(s.abs()));
-        let needed = largest / i64::from(samples.max(1)) + 1;
+        let needed = largest / samples.clamp(1, 1 << 16) as i32 + 1;
         self.slew_q16 = self.slew_q16.max(needed);
     }
 
     /// Back to the configured slew rate.
     pub fn reset_slew(&mut self) {
-        self.slew_q16 = ((self.cfg.slew_v_per_sample / self.cfg.full_scale_v
-            * f32::from(DacConfig::DAC_MAX_WORD))
-            * 65536.0) as i64;
+        let words = (self.cfg.slew_v_per_sample / self.cfg.full_scale_v * f32::from(DacConfig::DAC_MAX_WORD))
+            .clamp(0.0, 4095.0);
+        self.slew_q16 = (words * 65536.0) as i32;
         self.slew_q16 = self.slew_q16.max(1);
     }
 
-    fn slew(value: &mut i64, target: i64, step: i64) {
+    fn slew(value: &mut i32, target: i32, step: i32) {
         *value += (target - *value).clamp(-step, step);
     }
 
@@ -199,28 +202,49 @@ impl QuadratureGenerator {
             let limit = if step > 0 { step.min(self.slew_q16) } else { self.slew_q16 };
             Self::slew(s, t, limit);
         }
-        let quarter: u32 = 1 << 30;
-        let ph2 = if self.direction > 0 {
-            self.phase.wrapping_sub(quarter)
-        } else {
-            self.phase.wrapping_add(quarter)
-        };
-        let mut out = [0u16; 2];
-        for (i, (o, ph)) in out.iter_mut().zip([self.phase, ph2]).enumerate() {
-            let s = i64::from(sin_turn_q30(ph));
-            let dc = self.static_q16.get(i).copied().unwrap_or(0);
-            let v = self.mid_q16 + dc + ((self.amp_q16 * s) >> 30);
-            let v = v.clamp(self.min_q16, self.max_q16);
-            *o = ((v + 32768) >> 16).clamp(0, i64::from(DacConfig::DAC_MAX_WORD)) as u16;
-        }
+        let out = self.words_at(self.phase);
         self.phase = self.phase.wrapping_add(self.step);
         out
     }
 
+    /// Both channels' words at a phase, with the present amplitude and offsets.
+    #[inline(always)]
+    fn words_at(&self, phase: u32) -> [u16; 2] {
+        let quarter: u32 = 1 << 30;
+        let ph2 = if self.direction > 0 { phase.wrapping_sub(quarter) } else { phase.wrapping_add(quarter) };
+        let [dc1, dc2] = self.static_q16;
+        [self.word(phase, dc1), self.word(ph2, dc2)]
+    }
+
+    #[inline(always)]
+    fn word(&self, phase: u32, dc_q16: i32) -> u16 {
+        // amplitude (< 2²⁸) × sine (Q30): one 32×32→64 multiply.
+        let ac = ((i64::from(self.amp_q16) * i64::from(sin_turn_q30(phase))) >> 30) as i32;
+        let v = (self.mid_q16 + dc_q16 + ac).clamp(self.min_q16, self.max_q16);
+        ((v + 32768) >> 16).clamp(0, i32::from(DacConfig::DAC_MAX_WORD)) as u16
+    }
+
+    /// Nothing is slewing: every sample of a buffer uses the same amplitude and offsets.
+    fn steady(&self) -> bool {
+        self.pending_direction == self.direction
+            && self.amp_q16 == self.amp_target_q16
+            && self.static_q16 == self.static_target_q16
+    }
+
     /// Fills a buffer of samples (e.g. one half of the circular DMA buffer).
     pub fn fill(&mut self, buf: &mut [[u16; 2]]) {
-        for s in buf.iter_mut() {
-            *s = self.next_words();
+        if self.steady() {
+            // The common case in a steady drive: only the phase advances.
+            let mut phase = self.phase;
+            for s in buf.iter_mut() {
+                *s = self.words_at(phase);
+                phase = phase.wrapping_add(self.step);
+            }
+            self.phase = phase;
+        } else {
+            for s in buf.iter_mut() {
+                *s = self.next_words();
+            }
         }
     }
 

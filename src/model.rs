@@ -84,7 +84,8 @@ pub fn contact_angle(preload_n: Fx, kc_yc_n: Fx) -> Fx {
     Fx::from_bits(theta as i32)
 }
 
-/// The model at one drive condition.
+/// The model at one drive condition. The speed-independent parts of eq. (22) are computed once
+/// here, so each thrust evaluation is one acos, one sine and a few multiplies.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ThrustPoint {
     pub preload_n: Fx,
@@ -93,6 +94,88 @@ pub struct ThrustPoint {
     pub foot_speed_mm_s: Fx,
     pub mu: Fx,
     pub viscous_un_per_mm_s: Fx,
+    /// 2⁴⁸ / foot-speed bits: speed/foot-speed as a multiply (0 when the foot does not move).
+    inv_foot_speed_q32: i64,
+    half_angle_rad: Fx,
+    cos_half: Fx,
+    /// arc(θc/2, cos θc/2), the contact arc's share that does not depend on speed.
+    arc_half: Fx,
+    /// 2·w·sin(θc/2), the viscous term's speed-independent part (mm/s).
+    viscous_sweep_mm_s: Fx,
+}
+
+/// 1/2π in Q32: dividing by 2π as a multiply (no 64-bit software divide on the Cortex-M4).
+const INV_TAU_Q32: i64 = 683_565_276;
+
+fn div_tau(x: Fx) -> Fx {
+    Fx::from_bits(((i64::from(x.to_bits()) * INV_TAU_Q32) >> 32) as i32)
+}
+
+/// The motor's per-volt amplitudes at one frequency (table lookups done once).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PerVolt {
+    pub kc_yc_n_per_v: Fx,
+    pub foot_speed_mm_s_per_v: Fx,
+    pub mu: Fx,
+    pub viscous_un_per_mm_s: Fx,
+}
+
+impl PerVolt {
+    pub fn point(&self, preload_n: Fx, voltage_v: Fx) -> ThrustPoint {
+        ThrustPoint::new(
+            preload_n,
+            self.kc_yc_n_per_v.saturating_mul(voltage_v),
+            self.foot_speed_mm_s_per_v.saturating_mul(voltage_v),
+            self.mu,
+            self.viscous_un_per_mm_s,
+        )
+    }
+}
+
+/// Root of a decreasing `f` on [lo, hi] with f(lo) > 0 ≥ f(hi), by false position with the
+/// Illinois modification: superlinear, so a handful of model evaluations replace a 16–20 step
+/// bisection. Stops when the bracket is below `tol`, when |f| < `ftol`, or after `max_evals`;
+/// returns the end of the bracket on the positive side (never past the root, up to `ftol`).
+fn falling_root(mut f: impl FnMut(f32) -> f32, lo: f32, hi: f32, tol: f32, ftol: f32, max_evals: u32) -> f32 {
+    let (mut a, mut fa) = (lo, f(lo));
+    let (mut b, mut fb) = (hi, f(hi));
+    if fa <= 0.0 {
+        return lo;
+    }
+    if fb > 0.0 {
+        return hi;
+    }
+    let mut side = 0i8;
+    for _ in 0..max_evals {
+        if b - a <= tol {
+            break;
+        }
+        let span = fa - fb;
+        let mut c = if span > 0.0 { a + fa * (b - a) / span } else { 0.5 * (a + b) };
+        // Keep strictly inside so the bracket always shrinks.
+        let margin = 0.01 * (b - a);
+        c = c.clamp(a + margin, b - margin);
+        let fc = f(c);
+        if fc.abs() < ftol {
+            return c;
+        }
+        if fc > 0.0 {
+            a = c;
+            fa = fc;
+            if side == 1 {
+                fb *= 0.5;
+            }
+            side = 1;
+        } else {
+            b = c;
+            fb = fc;
+            if side == -1 {
+                fa *= 0.5;
+            }
+            side = -1;
+        }
+    }
+    a
 }
 
 impl MotorConstants {
@@ -110,16 +193,18 @@ impl MotorConstants {
         y0 + (y1 - y0) * t
     }
 
-    pub fn point(&self, preload_n: Fx, voltage_v: Fx, freq_khz: Fx) -> ThrustPoint {
-        let kc_yc_n = self.per_volt(&self.kc_yc_n_per_v, freq_khz).saturating_mul(voltage_v);
-        ThrustPoint {
-            preload_n,
-            kc_yc_n,
-            contact_angle_rad: contact_angle(preload_n, kc_yc_n),
-            foot_speed_mm_s: self.per_volt(&self.foot_speed_mm_s_per_v, freq_khz).saturating_mul(voltage_v),
+    /// The per-volt amplitudes at a drive frequency.
+    pub fn at_frequency(&self, freq_khz: Fx) -> PerVolt {
+        PerVolt {
+            kc_yc_n_per_v: self.per_volt(&self.kc_yc_n_per_v, freq_khz),
+            foot_speed_mm_s_per_v: self.per_volt(&self.foot_speed_mm_s_per_v, freq_khz),
             mu: self.mu,
             viscous_un_per_mm_s: self.viscous_un_per_mm_s,
         }
+    }
+
+    pub fn point(&self, preload_n: Fx, voltage_v: Fx, freq_khz: Fx) -> ThrustPoint {
+        self.at_frequency(freq_khz).point(preload_n, voltage_v)
     }
 
     /// Preload at which contact becomes permanent at this drive (`kc·Yc`).
@@ -129,22 +214,27 @@ impl MotorConstants {
 
     /// Inverse model (the feedforward): the drive voltage (peak-to-peak, within `max_v`) at which
     /// the motor runs at `speed_mm_s` against `load_n` (opposing; negative = assisting). Returns
-    /// `max_v` when even that is not enough.
+    /// `max_v` when even that is not enough. Thrust rises with voltage; the root is found to
+    /// 0.01 V (a hundredth of a DAC word's worth at 100 V full scale is 0.0024 V per word).
     pub fn voltage_for(&self, preload_n: Fx, freq_khz: Fx, speed_mm_s: Fx, load_n: Fx, max_v: Fx) -> Fx {
-        let thrust = |v: Fx| self.point(preload_n, v, freq_khz).thrust_n(speed_mm_s);
-        if thrust(max_v) <= load_n {
+        let per_volt = self.at_frequency(freq_khz);
+        let load: f32 = load_n.to_num();
+        // Falling in voltage: load − thrust(v).
+        let excess = |v: f32| {
+            load - per_volt.point(preload_n, Fx::saturating_from_num(v)).thrust_n(speed_mm_s).to_num::<f32>()
+        };
+        let top: f32 = max_v.max(Fx::ZERO).to_num();
+        if excess(top) >= 0.0 {
             return max_v;
         }
-        let (mut lo, mut hi) = (Fx::ZERO, max_v);
-        for _ in 0..16 {
-            let mid = (lo + hi) / 2;
-            if thrust(mid) < load_n {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
+        // The smallest voltage whose thrust reaches the load: the root's upper side.
+        let below = falling_root(excess, 0.0, top, 0.01, 1e-4, 12);
+        let v = Fx::saturating_from_num(below + 0.01).min(max_v);
+        if excess(v.to_num()) < 0.0 {
+            v
+        } else {
+            Fx::saturating_from_num(below + 0.02).min(max_v)
         }
-        hi
     }
 }
 
@@ -154,6 +244,26 @@ fn arc(b: Fx, c: Fx) -> Fx {
 }
 
 impl ThrustPoint {
+    fn new(preload_n: Fx, kc_yc_n: Fx, foot_speed_mm_s: Fx, mu: Fx, viscous_un_per_mm_s: Fx) -> Self {
+        let contact_angle_rad = contact_angle(preload_n, kc_yc_n);
+        let half = contact_angle_rad / 2;
+        let cos_half = cos(half);
+        let w_bits = i64::from(foot_speed_mm_s.to_bits());
+        ThrustPoint {
+            preload_n,
+            kc_yc_n,
+            contact_angle_rad,
+            foot_speed_mm_s,
+            mu,
+            viscous_un_per_mm_s,
+            inv_foot_speed_q32: if w_bits > 0 { (1i64 << 48) / w_bits } else { 0 },
+            half_angle_rad: half,
+            cos_half,
+            arc_half: arc(half, cos_half),
+            viscous_sweep_mm_s: foot_speed_mm_s.saturating_mul(sin(half)).saturating_mul_int(2),
+        }
+    }
+
     pub fn full_contact(&self) -> bool {
         self.preload_n >= self.kc_yc_n
     }
@@ -169,23 +279,24 @@ impl ThrustPoint {
                 Fx::ZERO
             }
         } else {
-            acos(speed_mm_s.checked_div(w).unwrap_or(Fx::ONE).clamp(-Fx::ONE, Fx::ONE))
+            // speed / w, saturated to ±1 (beyond the foot's speed the angle is 0 or π).
+            let ratio = (i64::from(speed_mm_s.to_bits()).saturating_mul(self.inv_foot_speed_q32) >> 32)
+                .clamp(-65536, 65536);
+            acos(Fx::from_bits(ratio as i32))
         };
-        let two_pi = Fx::TAU;
         let four = Fx::from_num(4);
         let visc_n = |x: Fx| x.saturating_mul(self.viscous_un_per_mm_s) / 1_000_000;
         if self.full_contact() {
             let f0 = self.preload_n;
             let coulomb =
-                (four * f0 * phi_p - two_pi * f0 + four * self.kc_yc_n * sin(phi_p)) * self.mu / two_pi;
+                div_tau((four * f0 * phi_p - Fx::TAU * f0 + four * self.kc_yc_n * sin(phi_p)) * self.mu);
             return coulomb - visc_n(speed_mm_s);
         }
-        let half = self.contact_angle_rad / 2;
-        let c = cos(half);
-        let m = phi_p.min(half);
+        let m = phi_p.min(self.half_angle_rad);
         let r = self.mu * self.kc_yc_n;
-        let coulomb = r * (four * arc(m, c) - arc(half, c) * 2) / two_pi;
-        let viscous = visc_n(w * sin(half) * 2 - self.contact_angle_rad * speed_mm_s) / two_pi;
+        let coulomb = div_tau(r * (four * arc(m, self.cos_half) - self.arc_half * 2));
+        let viscous =
+            div_tau(visc_n(self.viscous_sweep_mm_s - self.contact_angle_rad.saturating_mul(speed_mm_s)));
         coulomb + viscous
     }
 
@@ -193,25 +304,20 @@ impl ThrustPoint {
         self.thrust_n(Fx::ZERO)
     }
 
-    /// Speed at which the thrust falls to zero (bisection between standstill and the foot speed).
+    /// Speed at which the thrust falls to zero.
     pub fn no_load_speed_mm_s(&self) -> Fx {
         self.speed_at_load_mm_s(Fx::ZERO)
     }
 
-    /// Forward speed at which the thrust equals an opposing `load_n` (0 when the load stalls it).
+    /// Forward speed at which the thrust equals an opposing `load_n` (0 when the load stalls it),
+    /// to 0.001 mm/s. Thrust falls with speed between standstill and the foot's peak speed.
     pub fn speed_at_load_mm_s(&self, load_n: Fx) -> Fx {
         if self.stall_force_n() <= load_n {
             return Fx::ZERO;
         }
-        let (mut lo, mut hi) = (Fx::ZERO, self.foot_speed_mm_s);
-        for _ in 0..20 {
-            let mid = (lo + hi) / 2;
-            if self.thrust_n(mid) > load_n {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        lo
+        let load: f32 = load_n.to_num();
+        let excess = |v: f32| self.thrust_n(Fx::saturating_from_num(v)).to_num::<f32>() - load;
+        let top: f32 = self.foot_speed_mm_s.to_num();
+        Fx::saturating_from_num(falling_root(excess, 0.0, top, 0.001, 1e-4, 12))
     }
 }
