@@ -82,7 +82,7 @@ pub fn controller_config() -> ControllerConfig {
         reference_signal: ReferenceSignal::Index,
         reference_position_nm: 0,
         reference_drive_v: 50.0,
-        reference_timeout_s: 60.0,
+        reference_timeout_s: 200.0,
     };
     cfg.preload_max_n = full_contact_preload_n(&cfg);
     cfg

@@ -1,0 +1,423 @@
+//! `host-sim serve`: the virtual controller. The firmware's control core runs against the plant
+//! paced to the wall clock, and speaks PI GCS 2.0 through the very protocol module the firmware
+//! uses ([`piezo_drive::gcs`]), over TCP (`--tcp 127.0.0.1:PORT`) or a pseudo-terminal (`--pty`).
+//! One client at a time; a client that disconnects mid-line leaves nothing behind.
+
+use crate::params::Params;
+use crate::sil::{controller_config, Sil};
+use anyhow::{bail, Context, Result};
+use piezo_drive::controller::ControllerConfig;
+use piezo_drive::gcs::{params::PARAMS, Board, Gcs, LoopStats, Pending, Reply};
+use std::fmt::Write as _;
+use std::io::{ErrorKind, Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct ServeArgs {
+    /// Listen for one GCS client at a time on this TCP address (e.g. 127.0.0.1:50000).
+    #[arg(long, value_name = "ADDR:PORT")]
+    pub tcp: Option<String>,
+    /// Open a pseudo-terminal and print its path (a serial port for clients such as PIPython's
+    /// `ConnectRS232`).
+    #[arg(long)]
+    pub pty: bool,
+    /// Log every exchange (bytes in, bytes out) to stderr.
+    #[arg(long)]
+    pub verbose: bool,
+    /// Preload force F0 of the simulated motor (N).
+    #[arg(long, default_value_t = 16.0)]
+    pub preload_n: f64,
+    /// Encoder index mark at this slider position of the plant (µm; the slider starts at 0).
+    #[arg(long, default_value_t = -20.0, allow_negative_numbers = true)]
+    pub index_um: f64,
+    /// Limit switches this far beyond the index on either side (mm).
+    #[arg(long, default_value_t = 55.0)]
+    pub limit_mm: f64,
+    /// File for `WPA` (parameters as `SPA` lines, replayed at start-up); in memory when absent.
+    #[arg(long, value_name = "FILE")]
+    pub store: Option<PathBuf>,
+    /// Stop after this many seconds (for tests); runs until killed when absent.
+    #[arg(long, value_name = "S")]
+    pub duration_s: Option<f64>,
+}
+
+/// The simulated board's side of the protocol.
+pub struct SimBoard {
+    store: Option<PathBuf>,
+    /// Last `WPA` content when there is no file.
+    pub stored: Option<String>,
+    pub stats: LoopStats,
+}
+
+/// `SPA` lines for every writable parameter: the stored form of a configuration.
+pub fn parameter_lines(cfg: &ControllerConfig) -> String {
+    let mut gcs = Gcs::new();
+    let mut ctl = match piezo_drive::controller::Controller::new(*cfg) {
+        Ok(c) => c,
+        Err(_) => return String::new(),
+    };
+    let mut reply = Reply::new();
+    let mut board = SimBoard { store: None, stored: None, stats: LoopStats::default() };
+    for b in b"SPA?\n" {
+        if let Some(p) = gcs.push_byte(*b) {
+            gcs.execute(&p, &mut ctl, &mut board, &mut reply);
+        }
+    }
+    let text = String::from_utf8_lossy(&reply).into_owned();
+    let mut s = String::new();
+    for line in text.lines() {
+        // "1 0x1=40" → "SPA 1 0x1 40", writable parameters only.
+        let line = line.trim_end();
+        let Some((head, value)) = line.split_once('=') else { continue };
+        let Some(id) = head.split_whitespace().nth(1) else { continue };
+        let writable = u32::from_str_radix(id.trim_start_matches("0x"), 16)
+            .ok()
+            .and_then(|id| PARAMS.iter().find(|p| p.id == id))
+            .is_some_and(|p| !p.read_only);
+        if writable {
+            let _ = writeln!(s, "SPA 1 {id} {value}");
+        }
+    }
+    s
+}
+
+impl Board for SimBoard {
+    fn store_parameters(&mut self, cfg: &ControllerConfig) -> bool {
+        let text = parameter_lines(cfg);
+        match &self.store {
+            Some(path) => std::fs::write(path, text).is_ok(),
+            None => {
+                self.stored = Some(text);
+                true
+            }
+        }
+    }
+    fn serial_number(&self) -> u32 {
+        1
+    }
+    fn loop_stats(&self) -> LoopStats {
+        self.stats
+    }
+}
+
+/// Printable form of protocol bytes for the log.
+fn escape(bytes: &[u8]) -> String {
+    let mut s = String::new();
+    for &b in bytes {
+        match b {
+            b'\n' => s.push_str("\\n"),
+            b'\r' => s.push_str("\\r"),
+            b'\t' => s.push_str("\\t"),
+            0x20..=0x7e => s.push(char::from(b)),
+            _ => {
+                let _ = write!(s, "\\x{b:02x}");
+            }
+        }
+    }
+    s
+}
+
+/// A byte stream to one client.
+trait Link {
+    /// Bytes now available (empty when none); Err when the client went away.
+    fn poll_read(&mut self, buf: &mut [u8]) -> std::io::Result<usize>;
+    fn write_all_bytes(&mut self, bytes: &[u8]) -> std::io::Result<()>;
+}
+
+impl Link for TcpStream {
+    fn poll_read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        match self.read(buf) {
+            Ok(0) => Err(std::io::Error::new(ErrorKind::UnexpectedEof, "client closed the connection")),
+            Ok(n) => Ok(n),
+            Err(e) if e.kind() == ErrorKind::WouldBlock || e.kind() == ErrorKind::Interrupted => Ok(0),
+            Err(e) => Err(e),
+        }
+    }
+    fn write_all_bytes(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        self.set_nonblocking(false)?;
+        let r = self.write_all(bytes).and_then(|_| self.flush());
+        self.set_nonblocking(true)?;
+        r
+    }
+}
+
+/// The virtual controller: the board (controller + plant), the protocol, the pacing.
+pub struct VirtualController {
+    pub sil: Sil,
+    pub gcs: Gcs,
+    pub board: SimBoard,
+    verbose: bool,
+    start: Instant,
+    sim_start_s: f64,
+}
+
+impl VirtualController {
+    pub fn new(p: &Params, args: &ServeArgs) -> Result<Self> {
+        if !(args.preload_n.is_finite() && args.preload_n > 0.0 && args.preload_n <= 60.0) {
+            bail!("--preload-n must be in (0, 60] N, got {}", args.preload_n);
+        }
+        if !(args.index_um.is_finite() && args.index_um.abs() <= 50_000.0) {
+            bail!("--index-um must be within ±50000 µm, got {}", args.index_um);
+        }
+        if !(args.limit_mm.is_finite() && args.limit_mm > 0.0 && args.limit_mm <= 1000.0) {
+            bail!("--limit-mm must be in (0, 1000] mm, got {}", args.limit_mm);
+        }
+        let mut sil = Sil::new(p, controller_config(p), args.preload_n, 1)?;
+        let index_m = args.index_um * 1e-6;
+        sil.index_position_m = Some(index_m);
+        sil.limits_m = Some((index_m - args.limit_mm * 1e-3, index_m + args.limit_mm * 1e-3));
+        let mut vc = VirtualController {
+            sil,
+            gcs: Gcs::new(),
+            board: SimBoard { store: args.store.clone(), stored: None, stats: LoopStats::default() },
+            verbose: args.verbose,
+            start: Instant::now(),
+            sim_start_s: 0.0,
+        };
+        vc.board.stats.core_clock_hz = 1_000_000_000; // "cycles" are nanoseconds on the host
+                                                      // Parameters stored by an earlier WPA, replayed as the firmware loads them from flash.
+        if let Some(path) = &args.store {
+            if path.exists() {
+                let text =
+                    std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+                let mut sink = Reply::new();
+                vc.feed(text.as_bytes(), &mut sink);
+                if vc.gcs.latched_error() != 0 {
+                    bail!(
+                        "{}: stored parameters rejected (GCS error {})",
+                        path.display(),
+                        vc.gcs.latched_error()
+                    );
+                }
+            }
+        }
+        // Settle the force-cell filter before anyone talks to us.
+        vc.sil.run_until(0.05, |_| false);
+        vc.sim_start_s = vc.sil.time_s();
+        vc.start = Instant::now();
+        Ok(vc)
+    }
+
+    /// Runs the plant up to the wall clock (at most 0.1 s of catching up per call).
+    pub fn advance(&mut self) {
+        let wall = self.start.elapsed().as_secs_f64();
+        let behind = wall - (self.sil.time_s() - self.sim_start_s);
+        if behind > 0.1 {
+            // Fell behind (a stalled host): skip ahead rather than race.
+            self.board.stats.overruns = self.board.stats.overruns.saturating_add(1);
+            self.sim_start_s += behind - 0.1;
+        }
+        while self.sil.time_s() - self.sim_start_s < wall {
+            self.sil.period();
+            let ns = u32::try_from(self.sil.last_step_ns).unwrap_or(u32::MAX);
+            self.board.stats.step_cycles_last = ns;
+            self.board.stats.step_cycles_max = self.board.stats.step_cycles_max.max(ns);
+        }
+    }
+
+    /// Feeds received bytes through the protocol; replies are appended to `out`.
+    pub fn feed(&mut self, bytes: &[u8], out: &mut Reply) {
+        for &b in bytes {
+            if let Some(p) = self.gcs.push_byte(b) {
+                let before = out.len();
+                self.gcs.execute(&p, &mut self.sil.controller, &mut self.board, out);
+                if self.verbose {
+                    let cmd = match &p {
+                        Pending::Line(l) => escape(l),
+                        Pending::TooLong => "<line too long>".into(),
+                        Pending::Byte(b) => escape(&[*b]),
+                    };
+                    let reply = out.get(before..).map(escape).unwrap_or_default();
+                    eprintln!(
+                        "[{:9.4} s] > {cmd}  < {}{}",
+                        self.sil.time_s() - self.sim_start_s,
+                        if reply.is_empty() { "(nothing)" } else { &reply },
+                        match self.gcs.latched_error() {
+                            0 => String::new(),
+                            e => format!("  [error {e} latched]"),
+                        }
+                    );
+                }
+            }
+        }
+    }
+
+    /// Serves one client until it goes away (or `deadline` passes).
+    fn serve_client(&mut self, link: &mut dyn Link, deadline: Option<Instant>) -> Result<()> {
+        let mut buf = [0u8; 512];
+        loop {
+            if deadline.is_some_and(|d| Instant::now() >= d) {
+                return Ok(());
+            }
+            self.advance();
+            let n = match link.poll_read(&mut buf) {
+                Ok(n) => n,
+                Err(e) => {
+                    if self.verbose {
+                        eprintln!("client gone: {e}");
+                    }
+                    self.gcs.discard_partial_line();
+                    return Ok(());
+                }
+            };
+            if n == 0 {
+                std::thread::sleep(Duration::from_micros(500));
+                continue;
+            }
+            let mut rest = buf.get(..n).unwrap_or_default();
+            while !rest.is_empty() {
+                let mut out = Reply::new();
+                // Feed byte by byte so a large input never overflows the reply buffer.
+                let mut used = 0;
+                for (i, b) in rest.iter().enumerate() {
+                    self.feed(std::slice::from_ref(b), &mut out);
+                    used = i + 1;
+                    if out.len() > out.capacity() / 2 {
+                        break;
+                    }
+                }
+                rest = rest.get(used..).unwrap_or_default();
+                if !out.is_empty() {
+                    if let Err(e) = link.write_all_bytes(&out) {
+                        if self.verbose {
+                            eprintln!("client gone while replying: {e}");
+                        }
+                        self.gcs.discard_partial_line();
+                        return Ok(());
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(unix)]
+mod pty {
+    use anyhow::{bail, Result};
+    use std::ffi::CStr;
+    use std::fs::File;
+    use std::io::{ErrorKind, Read, Write};
+    use std::os::fd::FromRawFd;
+
+    /// Master side of a raw-mode pseudo-terminal; the slave stays open so the master never
+    /// sees a hang-up between clients.
+    pub struct Pty {
+        master: File,
+        _slave: File,
+        pub path: String,
+    }
+
+    impl Pty {
+        pub fn open() -> Result<Self> {
+            // SAFETY: plain libc calls on descriptors we own; every result is checked.
+            unsafe {
+                let fd = libc::posix_openpt(libc::O_RDWR | libc::O_NOCTTY);
+                if fd < 0 {
+                    bail!("posix_openpt failed: {}", std::io::Error::last_os_error());
+                }
+                let master = File::from_raw_fd(fd);
+                if libc::grantpt(fd) != 0 || libc::unlockpt(fd) != 0 {
+                    bail!("grantpt/unlockpt failed: {}", std::io::Error::last_os_error());
+                }
+                let mut name = [0 as libc::c_char; 256];
+                if libc::ptsname_r(fd, name.as_mut_ptr(), name.len()) != 0 {
+                    bail!("ptsname_r failed: {}", std::io::Error::last_os_error());
+                }
+                let path = CStr::from_ptr(name.as_ptr()).to_string_lossy().into_owned();
+                let sfd = libc::open(name.as_ptr(), libc::O_RDWR | libc::O_NOCTTY);
+                if sfd < 0 {
+                    bail!("opening {path} failed: {}", std::io::Error::last_os_error());
+                }
+                let slave = File::from_raw_fd(sfd);
+                // Raw mode: no echo, no line editing, no CR/LF translation either way.
+                let mut t: libc::termios = std::mem::zeroed();
+                if libc::tcgetattr(sfd, &mut t) != 0 {
+                    bail!("tcgetattr failed: {}", std::io::Error::last_os_error());
+                }
+                libc::cfmakeraw(&mut t);
+                if libc::tcsetattr(sfd, libc::TCSANOW, &t) != 0 {
+                    bail!("tcsetattr failed: {}", std::io::Error::last_os_error());
+                }
+                let flags = libc::fcntl(fd, libc::F_GETFL);
+                if flags < 0 || libc::fcntl(fd, libc::F_SETFL, flags | libc::O_NONBLOCK) != 0 {
+                    bail!("fcntl failed: {}", std::io::Error::last_os_error());
+                }
+                Ok(Pty { master, _slave: slave, path })
+            }
+        }
+    }
+
+    impl super::Link for Pty {
+        fn poll_read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            match self.master.read(buf) {
+                Ok(n) => Ok(n),
+                Err(e) if e.kind() == ErrorKind::WouldBlock || e.kind() == ErrorKind::Interrupted => Ok(0),
+                Err(e) => Err(e),
+            }
+        }
+        fn write_all_bytes(&mut self, mut bytes: &[u8]) -> std::io::Result<()> {
+            while !bytes.is_empty() {
+                match self.master.write(bytes) {
+                    Ok(n) => bytes = bytes.get(n..).unwrap_or_default(),
+                    Err(e) if e.kind() == ErrorKind::WouldBlock || e.kind() == ErrorKind::Interrupted => {
+                        std::thread::sleep(std::time::Duration::from_micros(200));
+                    }
+                    Err(e) => return Err(e),
+                }
+            }
+            Ok(())
+        }
+    }
+}
+
+/// `host-sim serve`.
+pub fn run(p: &Params, args: &ServeArgs) -> Result<()> {
+    if args.tcp.is_some() == args.pty {
+        bail!("give exactly one of --tcp ADDR:PORT and --pty");
+    }
+    if let Some(d) = args.duration_s {
+        if !(d.is_finite() && d > 0.0) {
+            bail!("--duration-s must be a positive number of seconds, got {d}");
+        }
+    }
+    let mut vc = VirtualController::new(p, args)?;
+    let deadline = args.duration_s.map(|d| Instant::now() + Duration::from_secs_f64(d));
+    if let Some(addr) = &args.tcp {
+        let listener = TcpListener::bind(addr).with_context(|| format!("binding {addr}"))?;
+        listener.set_nonblocking(true)?;
+        println!("listening on {}", listener.local_addr()?);
+        std::io::stdout().flush()?;
+        loop {
+            if deadline.is_some_and(|d| Instant::now() >= d) {
+                return Ok(());
+            }
+            vc.advance();
+            match listener.accept() {
+                Ok((mut stream, peer)) => {
+                    stream.set_nonblocking(true)?;
+                    let _ = stream.set_nodelay(true);
+                    if args.verbose {
+                        eprintln!("client {peer} connected");
+                    }
+                    vc.serve_client(&mut stream, deadline)?;
+                    if args.verbose {
+                        eprintln!("client {peer} done");
+                    }
+                }
+                Err(e) if e.kind() == ErrorKind::WouldBlock => std::thread::sleep(Duration::from_millis(1)),
+                Err(e) => return Err(e).context("accepting a client"),
+            }
+        }
+    }
+    #[cfg(unix)]
+    {
+        let mut link = pty::Pty::open()?;
+        println!("pty {}", link.path);
+        std::io::stdout().flush()?;
+        vc.serve_client(&mut link, deadline)
+    }
+    #[cfg(not(unix))]
+    bail!("--pty needs a Unix host")
+}
