@@ -65,7 +65,9 @@ fn decimal_parser_closed_forms() {
     assert_eq!(dec("150e-2").integer(), None);
     assert_eq!(dec("200e-2").integer(), Some(2));
     assert_eq!(dec("-7").integer(), Some(-7));
-    for bad in ["", "-", "+", ".", "e5", "1e", "1e+", "nan", "NaN", "inf", "-inf", "1.2.3", "1x", "0x10", "--1", "1 "] {
+    for bad in [
+        "", "-", "+", ".", "e5", "1e", "1e+", "nan", "NaN", "inf", "-inf", "1.2.3", "1x", "0x10", "--1", "1 ",
+    ] {
         assert_eq!(parse_decimal(bad.as_bytes()), None, "{bad:?}");
     }
     assert_eq!(parse_int(b"0x3F"), Some(63));
@@ -221,7 +223,12 @@ fn check_framing(reply: &[u8]) -> Result<(), TestCaseError> {
     prop_assert_eq!(reply.last(), Some(&b'\n'));
     let body = &reply[..reply.len() - 1];
     if let Some(&c) = body.last() {
-        prop_assert_ne!(c, b' ', "single or last line ends with a space: {:?}", String::from_utf8_lossy(reply));
+        prop_assert_ne!(
+            c,
+            b' ',
+            "single or last line ends with a space: {:?}",
+            String::from_utf8_lossy(reply)
+        );
     }
     for (i, &b) in body.iter().enumerate() {
         if b == b'\n' {

@@ -421,3 +421,165 @@ pub fn run(p: &Params, args: &ServeArgs) -> Result<()> {
     #[cfg(not(unix))]
     bail!("--pty needs a Unix host")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use piezo_drive::controller::State;
+
+    fn args() -> ServeArgs {
+        ServeArgs {
+            tcp: None,
+            pty: false,
+            verbose: false,
+            preload_n: 16.0,
+            index_um: -20.0,
+            limit_mm: 55.0,
+            store: None,
+            duration_s: None,
+        }
+    }
+
+    fn send(vc: &mut VirtualController, text: &str) -> String {
+        let mut out = Reply::new();
+        vc.feed(text.as_bytes(), &mut out);
+        String::from_utf8_lossy(&out).into_owned()
+    }
+
+    /// Runs the plant (not paced) until `done` or `max_s` of plant time.
+    fn run_until(vc: &mut VirtualController, max_s: f64, done: impl Fn(&Sil) -> bool) -> bool {
+        vc.sil.run_until(max_s, done)
+    }
+
+    fn number(reply: &str) -> f64 {
+        reply.trim_end().split('=').nth(1).unwrap().parse().unwrap()
+    }
+
+    #[test]
+    fn frf_finds_the_emulated_index_and_moves_land_on_target() {
+        let p = Params::prototype();
+        let mut vc = VirtualController::new(&p, &args()).unwrap();
+        assert_eq!(send(&mut vc, "RON 1 1\nFRF 1\nERR?\n"), "0\n");
+        assert!(run_until(&mut vc, 1.0, |s| s.controller.state() != State::Referencing));
+        assert_eq!(send(&mut vc, "FRF? 1\nERR?\n"), "1=1\n0\n");
+        // The index is where the plant's slider crossed −20 µm: the controller's zero now sits
+        // there to within the distance covered in one control period at the search speed.
+        let pos_mm = number(&send(&mut vc, "POS?\n"));
+        let slider_um = vc.sil.plant.slider_position_m() * 1e6;
+        let zero_um = slider_um - pos_mm * 1e3;
+        assert!((zero_um - -20.0).abs() < 0.3, "zero at {zero_um} µm");
+        assert_eq!(send(&mut vc, "SVO 1 1\nMOV 1 0.05\nERR?\n"), "0\n");
+        assert!(run_until(&mut vc, 2.0, |s| s.controller.on_target()));
+        assert_eq!(send(&mut vc, "ONT?\n"), "1=1\n");
+        let pos_mm = number(&send(&mut vc, "POS?\n"));
+        assert!((pos_mm - 0.05).abs() <= 50e-6, "{pos_mm}");
+        let true_mm = (vc.sil.plant.slider_position_m() * 1e6 - zero_um) * 1e-3;
+        assert!((true_mm - 0.05).abs() < 0.4e-3, "plant at {true_mm} mm");
+    }
+
+    #[test]
+    fn frf_turns_round_at_the_negative_limit_when_the_index_is_behind() {
+        let p = Params::prototype();
+        // Index 20 µm above the start, negative switch 30 µm below it.
+        let a = ServeArgs { index_um: 20.0, limit_mm: 0.05, ..args() };
+        let mut vc = VirtualController::new(&p, &a).unwrap();
+        assert_eq!(send(&mut vc, "FRF\nERR?\n"), "0\n");
+        let mut lowest = f64::MAX;
+        let found = vc.sil.run_until(3.0, |s| {
+            lowest = lowest.min(s.plant.slider_position_m());
+            s.controller.state() != State::Referencing
+        });
+        assert!(found);
+        assert_eq!(send(&mut vc, "FRF?\nERR?\n"), "1=1\n0\n");
+        let slider_um = vc.sil.plant.slider_position_m() * 1e6;
+        let pos_um = number(&send(&mut vc, "POS?\n")) * 1e3;
+        assert!((slider_um - pos_um - 20.0).abs() < 0.3, "slider {slider_um} µm reads {pos_um} µm");
+        // It went down to the switch at −30 µm first.
+        assert!(lowest < -29e-6, "lowest {lowest}");
+    }
+
+    #[test]
+    fn frf_on_the_negative_limit_switch() {
+        let p = Params::prototype();
+        let a = ServeArgs { index_um: 5.0, limit_mm: 0.03, ..args() };
+        let mut vc = VirtualController::new(&p, &a).unwrap();
+        // Reference on the switch (the stage has no index, say) and call it −1 mm.
+        assert_eq!(send(&mut vc, "SPA 1 0x1016 1 1 0x1017 -1\nERR?\nSVO 1 1\nFRF 1\nERR?\n"), "0\n0\n");
+        assert!(vc.sil.run_until(3.0, |s| s.controller.state() != State::Referencing));
+        // Servo was on: it holds where it found the switch.
+        assert_eq!(send(&mut vc, "FRF?\nSVO?\n"), "1=1\n1=1\n");
+        let pos_mm = number(&send(&mut vc, "POS?\n"));
+        assert!((pos_mm - -1.0).abs() < 0.5e-3, "{pos_mm}");
+        let slider_um = vc.sil.plant.slider_position_m() * 1e6;
+        assert!(slider_um <= 5.0 - 30.0 + 0.5, "switch at −25 µm, slider at {slider_um} µm");
+    }
+
+    #[test]
+    fn open_loop_stepping_moves_the_slider_and_stops() {
+        let p = Params::prototype();
+        let mut vc = VirtualController::new(&p, &args()).unwrap();
+        let x0 = vc.sil.plant.slider_position_m();
+        // 200 cycles at 1.5 kHz, 80 V, toward −x.
+        assert_eq!(send(&mut vc, "XOS 1 -200 80 1500\nERR?\n\x05"), "0\n1\n");
+        assert!(vc.sil.run_until(1.0, |s| s.controller.state() == State::Idle));
+        let moved_um = (vc.sil.plant.slider_position_m() - x0) * 1e6;
+        // 0.133 s at up to the no-load speed (~2 mm/s here): tens of µm, negative.
+        assert!(moved_um < -20.0 && moved_um > -400.0, "moved {moved_um} µm");
+        vc.sil.run_until(0.002, |_| false); // the amplitude slews out
+        assert_eq!(send(&mut vc, "\x05XDA?\n"), "0\n1=0.000\n");
+    }
+
+    #[test]
+    fn wpa_stores_spa_lines_that_load_back() {
+        let p = Params::prototype();
+        let path = std::env::temp_dir().join(format!("host-sim-wpa-{}.txt", std::process::id()));
+        let _ = std::fs::remove_file(&path);
+        let a = ServeArgs { store: Some(path.clone()), ..args() };
+        let mut vc = VirtualController::new(&p, &a).unwrap();
+        assert_eq!(send(&mut vc, "VEL 1 1.5\nSPA 1 0x15 20\nWPA 100\nERR?\n"), "0\n");
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("SPA 1 0xA 1.5\n") && text.contains("SPA 1 0x15 20\n"), "{text}");
+        // A new virtual controller starts with them, as the board does from flash.
+        let mut again = VirtualController::new(&p, &a).unwrap();
+        assert_eq!(send(&mut again, "VEL?\nTMX?\nERR?\n"), "1=1.5\n1=20.000000\n0\n");
+        let _ = std::fs::remove_file(&path);
+    }
+
+    #[test]
+    fn a_client_that_leaves_mid_line_leaves_nothing_behind() {
+        let p = Params::prototype();
+        let port = {
+            let l = TcpListener::bind("127.0.0.1:0").unwrap();
+            l.local_addr().unwrap().port()
+        };
+        let a = ServeArgs { tcp: Some(format!("127.0.0.1:{port}")), duration_s: Some(4.0), ..args() };
+        let server = std::thread::spawn(move || run(&p, &a));
+        let connect = || {
+            for _ in 0..200 {
+                if let Ok(s) = TcpStream::connect(("127.0.0.1", port)) {
+                    return s;
+                }
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            panic!("server did not come up");
+        };
+        {
+            let mut c = connect();
+            c.write_all(b"MOV 1").unwrap();
+            std::thread::sleep(Duration::from_millis(50));
+        } // gone mid-line
+        let mut c = connect();
+        c.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
+        c.write_all(b"CSV?\nERR?\n").unwrap();
+        let mut got = Vec::new();
+        let mut buf = [0u8; 64];
+        while got.len() < 6 {
+            let n = c.read(&mut buf).unwrap();
+            assert!(n > 0);
+            got.extend_from_slice(&buf[..n]);
+        }
+        assert_eq!(got, b"2.0\n0\n");
+        drop(c);
+        server.join().unwrap().unwrap();
+    }
+}
