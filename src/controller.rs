@@ -340,8 +340,8 @@ impl Controller {
     /// Motion in progress: a closed-loop move, referencing or open-loop stepping.
     pub fn in_motion(&self) -> bool {
         match self.state {
-            State::Moving | State::Referencing | State::OpenLoop => true,
-            State::Holding => !self.profile.done(),
+            State::Referencing | State::OpenLoop => true,
+            State::Moving | State::Holding => !self.profile.done(),
             State::Idle | State::Fault(_) => false,
         }
     }
@@ -462,9 +462,20 @@ impl Controller {
         }
     }
 
-    /// Immediate stop: hold the present position (servo on) or go quiet (servo off).
+    /// Stop as fast as the motor can (PI's STP): a closed-loop move brakes along the profile at
+    /// the model's braking rate, whatever the deceleration limit says — the slider's inertia
+    /// makes a stop on the spot impossible, and a reference that stopped dead would only build
+    /// up following error. Referencing and open-loop stepping end at once: hold there (servo on)
+    /// or go quiet (servo off).
     pub fn stop(&mut self) {
-        if matches!(self.state, State::Moving | State::Holding | State::Referencing | State::OpenLoop) {
+        if self.state == State::Moving {
+            let a = self.model_brake_nm_s2();
+            let p = self.profile.stopping_point_nm(a);
+            self.profile.set_target(p);
+            self.decel_nm_s2 = a;
+            return;
+        }
+        if matches!(self.state, State::Holding | State::Referencing | State::OpenLoop) {
             let here = self.position_nm();
             self.profile.reset(here);
             self.open_loop_periods = 0;
@@ -579,13 +590,18 @@ impl Controller {
         (v * 1e6 * self.cfg.speed_fraction).min(self.cfg.velocity_max_nm_s)
     }
 
-    /// Braking limit: reverse drive at full voltage brakes with at least the stall force.
+    /// Braking limit: the model's (below) within the user's deceleration limit.
     fn accel_limit_nm_s2(&self) -> f32 {
+        self.model_brake_nm_s2().min(self.cfg.decel_max_nm_s2)
+    }
+
+    /// The model's braking: reverse drive at full voltage brakes with at least the stall force.
+    fn model_brake_nm_s2(&self) -> f32 {
         let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>().max(1e-3);
         let stall = self.thrust_limits().map_or(0.0, |(f, _)| f);
         // Leave the load estimate's share of the thrust for the load.
         let usable = (stall - self.thrust_bias_n.abs()).max(0.3 * stall);
-        (usable / mass * 1e9 * self.cfg.accel_fraction).min(self.cfg.decel_max_nm_s2)
+        usable / mass * 1e9 * self.cfg.accel_fraction
     }
 
     /// Speeding-up limit at the profile's present speed: the model's thrust at that speed and

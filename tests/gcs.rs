@@ -349,6 +349,20 @@ fn moves_need_servo_and_reference_and_stay_within_travel() {
 }
 
 #[test]
+fn on_target_after_the_settling_time() {
+    let mut rig = Rig::new();
+    rig.ready();
+    rig.transcript(&[(b"ONT?\n", b"1=0\n"), (b"SPA? 1 0x3F\n", b"1 0x3F=0.01\n")]);
+    // Holding within the window: on target once the 10 ms settling time (100 periods) passed.
+    rig.steps(99, Inputs::default());
+    rig.transcript(&[(b"ONT?\n", b"1=0\n")]);
+    rig.steps(2, Inputs::default());
+    rig.transcript(&[(b"ONT? 1\n", b"1=1\n"), (b"\x05", b"0\n")]);
+    // Servo off: never on target.
+    rig.transcript(&[(b"SVO 1 0\n", b""), (b"ONT?\n", b"1=0\n")]);
+}
+
+#[test]
 fn pos_sets_the_position_with_reference_mode_off() {
     let mut rig = Rig::new();
     rig.transcript(&[

@@ -478,6 +478,24 @@ mod tests {
     }
 
     #[test]
+    fn stp_and_hlt_mid_move_brake_without_a_fault() {
+        let p = Params::prototype();
+        for stop in ["STP\n", "HLT 1\n", "\x18"] {
+            let mut vc = VirtualController::new(&p, &args()).unwrap();
+            assert_eq!(send(&mut vc, "RON 1 0\nSVO 1 1\nMOV 1 1\nERR?\n"), "0\n");
+            vc.sil.run_until(0.1, |_| false);
+            let moving_mm_s = vc.sil.plant.slider_velocity_m_s() * 1e3;
+            assert!(moving_mm_s > 1.0, "{moving_mm_s} mm/s");
+            assert_eq!(send(&mut vc, stop), "");
+            let stopped = vc.sil.run_until(0.5, |s| s.controller.on_target());
+            assert!(stopped, "{stop:?}: {:?}", vc.sil.controller.state());
+            assert_eq!(send(&mut vc, "ERR?\nXFT?\n\x05"), "10\n1=0 no fault\n0\n", "{stop:?}");
+            let pos_mm = number(&send(&mut vc, "POS?\n"));
+            assert!(pos_mm > 0.1 && pos_mm < 0.5, "{stop:?} stopped at {pos_mm} mm");
+        }
+    }
+
+    #[test]
     fn frf_turns_round_at_the_negative_limit_when_the_index_is_behind() {
         let p = Params::prototype();
         // Index 20 µm above the start, negative switch 30 µm below it.

@@ -82,8 +82,10 @@ def main():
             # The refused move left the target alone.
             assert abs(pidevice.qMOV("1")["1"] - 0.1) < 1e-9
 
-            # STP stops and latches error 10, which PIPython raises.
-            pidevice.MOV("1", 0.3)
+            # STP stops a move under way and latches error 10, which PIPython raises.
+            pidevice.MOV("1", 0.6)
+            time.sleep(0.1)
+            assert pidevice.IsMoving("1")["1"] is True
             try:
                 pidevice.STP()
             except GCSError as exc:
@@ -92,7 +94,11 @@ def main():
                 raise AssertionError("STP did not latch error 10")
             time.sleep(0.05)
             assert pidevice.IsMoving("1")["1"] is False
-            print("STP: stopped at", pidevice.qPOS("1")["1"])
+            stopped = pidevice.qPOS("1")["1"]
+            time.sleep(0.2)
+            assert abs(pidevice.qPOS("1")["1"] - stopped) < 1e-3, "still moving after STP"
+            assert 0.1 < stopped < 0.6, stopped
+            print(f"STP: stopped at {stopped} mm on the way from 0.1 to 0.6 mm")
     finally:
         proc.terminate()
         try:
