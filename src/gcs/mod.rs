@@ -11,7 +11,7 @@
 pub mod num;
 pub mod params;
 
-use crate::controller::{CommandError, Controller, ControllerConfig, State};
+use crate::controller::{CommandError, Controller, ControllerConfig};
 use num::{
     parse_decimal, parse_int, write_fixed, write_general, write_i64, write_scaled, write_u64, Decimal,
 };
@@ -782,17 +782,5 @@ fn param_line(out: &mut Out, p: &params::Param, cfg: &ControllerConfig) {
     match p.kind {
         params::Kind::Int => out.fixed(v, 0),
         params::Kind::Float => out.general(v),
-    }
-}
-
-/// Short name of a controller state (for logs).
-pub fn state_name(s: State) -> &'static str {
-    match s {
-        State::Idle => "idle",
-        State::Moving => "moving",
-        State::Holding => "holding",
-        State::Referencing => "referencing",
-        State::OpenLoop => "open loop",
-        State::Fault(_) => "fault",
     }
 }
