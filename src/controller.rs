@@ -978,6 +978,9 @@ fn fraction(x: f32) -> bool {
     x.is_finite() && x > 0.0 && x <= 1.0
 }
 
+/// Largest travel limit either way (1 m): positions stay far from i64 and f32 trouble.
+pub const MAX_TRAVEL_NM: i64 = 1_000_000_000;
+
 /// Checks the settings a user may change for values the controller can work with.
 pub fn validate_settings(c: &ControllerConfig) -> Result<(), CommandError> {
     let d = &c.dac;
@@ -1008,6 +1011,9 @@ pub fn validate_settings(c: &ControllerConfig) -> Result<(), CommandError> {
         && finite_positive(c.stall_time_s)
         && c.encoder_jump_counts > 0
         && c.travel_min_nm < c.travel_max_nm
+        && c.travel_min_nm >= -MAX_TRAVEL_NM
+        && c.travel_max_nm <= MAX_TRAVEL_NM
+        && c.reference_position_nm.abs() <= MAX_TRAVEL_NM
         && finite_positive(c.velocity_max_nm_s)
         && finite_positive(c.accel_max_nm_s2)
         && finite_positive(c.decel_max_nm_s2)

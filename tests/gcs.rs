@@ -316,6 +316,8 @@ fn moves_need_servo_and_reference_and_stay_within_travel() {
         (b"ERR?\n", b"5\n"),
         (b"SVO 1 1\n", b""),
         (b"ERR?\n", b"0\n"),
+        (b"SVO 1 1\n", b""),
+        (b"SVO?\n", b"1=1\n"),
         // Reference mode on, not referenced: 5.
         (b"MOV 1 0.5\n", b""),
         (b"ERR?\n", b"5\n"),
@@ -458,6 +460,11 @@ fn parameters_spa_hpa_wpa() {
         (b"SPA 1 0x4242 1\n", b""),
         (b"ERR?\n", b"54\n"),
         (b"SPA 1 0x30 60\n", b""),
+        (b"ERR?\n", b"17\n"),
+        // Travel is bounded to ±1 m.
+        (b"SPA 1 0x15 1000.000001\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"SPA 1 0x15 1e300\n", b""),
         (b"ERR?\n", b"17\n"),
         (b"SPA 1 0x1005 0.5\n", b""),
         (b"ERR?\n", b"17\n"),

@@ -496,6 +496,18 @@ mod tests {
     }
 
     #[test]
+    fn servo_on_again_mid_move_changes_nothing() {
+        let p = Params::prototype();
+        let mut vc = VirtualController::new(&p, &args()).unwrap();
+        assert_eq!(send(&mut vc, "RON 1 0\nSVO 1 1\nMOV 1 0.4\nERR?\n"), "0\n");
+        vc.sil.run_until(0.1, |_| false);
+        assert_eq!(send(&mut vc, "SVO 1 1\nERR?\n\x05"), "0\n1\n");
+        assert!(vc.sil.run_until(1.0, |s| s.controller.on_target()));
+        assert_eq!(send(&mut vc, "ERR?\n"), "0\n");
+        assert!((number(&send(&mut vc, "POS?\n")) - 0.4).abs() <= 50e-6);
+    }
+
+    #[test]
     fn frf_turns_round_at_the_negative_limit_when_the_index_is_behind() {
         let p = Params::prototype();
         // Index 20 µm above the start, negative switch 30 µm below it.

@@ -562,6 +562,11 @@ impl Gcs {
                 if ctl.referencing() {
                     return Err(error::CONTROLLER_BUSY);
                 }
+                if ctl.fault().is_none() && ctl.servo() == on {
+                    // Already so: nothing to do (servo on again must not re-anchor a moving
+                    // slider's reference where it stands).
+                    return Ok(());
+                }
                 if ctl.fault().is_some() {
                     // As on PI controllers after a motion error: switching the servo (on or off)
                     // again is the recovery. Check what servo-on needs before clearing.
