@@ -76,8 +76,9 @@ pub enum State {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ReferenceSignal {
-    /// The encoder index: searched toward −x first; at the negative limit switch the search
-    /// turns round, at the positive one it fails.
+    /// The encoder index if the scale has one: searched toward −x first; at the negative limit
+    /// switch the search turns round; reaching the positive one means there is no index, and
+    /// the search goes back to reference on the negative limit switch.
     Index,
     /// The negative limit switch (stages without an index).
     NegativeLimit,
@@ -203,6 +204,8 @@ pub struct Controller {
     /// Referencing: search direction and time spent.
     reference_dir: i8,
     reference_s: f32,
+    /// Index search fell back to the negative limit switch.
+    reference_on_limit: bool,
     reference_failures: u32,
     faults: u32,
     /// Open-loop stepping: periods left, amplitude, frequency, direction.
@@ -263,6 +266,7 @@ impl Controller {
             decel_nm_s2: 1.0,
             reference_dir: -1,
             reference_s: 0.0,
+            reference_on_limit: false,
             reference_failures: 0,
             faults: 0,
             open_loop_periods: 0,
@@ -548,8 +552,9 @@ impl Controller {
     /// Moves open loop toward negative positions until the encoder index is seen, then sets the
     /// position there to zero.
     ///
-    /// With [`ReferenceSignal::Index`] the search turns round at the negative limit switch and
-    /// fails at the positive one; with [`ReferenceSignal::NegativeLimit`] the switch is the mark.
+    /// With [`ReferenceSignal::Index`] the search turns round at the negative limit switch and,
+    /// finding no index up to the positive one, references on the negative switch after all;
+    /// with [`ReferenceSignal::NegativeLimit`] the switch is the mark.
     /// The mark's position becomes `reference_position_nm`. Afterwards the controller holds there
     /// (servo on) or goes quiet (servo off). A search that runs out of time or switches fails:
     /// not referenced, [`Self::reference_failure_count`] counts it.
@@ -563,6 +568,7 @@ impl Controller {
         self.referenced = false;
         self.reference_dir = -1;
         self.reference_s = 0.0;
+        self.reference_on_limit = false;
         self.open_loop_periods = 0;
         Ok(())
     }
@@ -904,6 +910,7 @@ impl Controller {
         // No profile to follow while searching: keep the reference on the slider.
         self.profile.reset(here);
         let found = match self.cfg.reference_signal {
+            ReferenceSignal::Index if self.reference_on_limit => inputs.negative_limit,
             ReferenceSignal::Index => inputs.index,
             ReferenceSignal::NegativeLimit => inputs.negative_limit,
         };
@@ -912,14 +919,15 @@ impl Controller {
             self.end_open_loop_motion();
             return;
         }
-        if self.cfg.reference_signal == ReferenceSignal::Index {
+        if self.cfg.reference_signal == ReferenceSignal::Index && !self.reference_on_limit {
             if inputs.negative_limit && self.reference_dir < 0 {
                 self.reference_dir = 1;
             } else if inputs.positive_limit && self.reference_dir > 0 {
-                return self.reference_failed();
+                // The whole travel without an index: the scale has none. Back to the negative
+                // limit switch and reference on it.
+                self.reference_on_limit = true;
+                self.reference_dir = -1;
             }
-        } else if inputs.positive_limit && self.reference_dir > 0 {
-            return self.reference_failed();
         }
         self.reference_s += self.dt_s;
         if self.reference_s > self.cfg.reference_timeout_s {

@@ -529,6 +529,27 @@ mod tests {
     }
 
     #[test]
+    fn frf_without_an_index_references_on_the_negative_limit() {
+        let p = Params::prototype();
+        let a = ServeArgs { index_um: 10.0, limit_mm: 0.03, ..args() };
+        let mut vc = VirtualController::new(&p, &a).unwrap();
+        vc.sil.index_position_m = None; // a scale without index; switches at −20 and +40 µm
+        let mut highest = f64::MIN;
+        assert_eq!(send(&mut vc, "FRF\nERR?\n"), "0\n");
+        assert!(vc.sil.run_until(3.0, |s| {
+            highest = highest.max(s.plant.slider_position_m());
+            s.controller.state() != State::Referencing
+        }));
+        assert_eq!(send(&mut vc, "FRF?\nERR?\n"), "1=1\n0\n");
+        // It went all the way to the positive switch looking for an index, then back.
+        assert!(highest >= 40e-6, "highest {highest}");
+        let slider_um = vc.sil.plant.slider_position_m() * 1e6;
+        let pos_um = number(&send(&mut vc, "POS?\n")) * 1e3;
+        // Zero (parameter 0x1017) where the negative switch closed, at −20 µm.
+        assert!((slider_um - pos_um - -20.0).abs() < 0.3, "slider {slider_um} µm reads {pos_um} µm");
+    }
+
+    #[test]
     fn frf_on_the_negative_limit_switch() {
         let p = Params::prototype();
         let a = ServeArgs { index_um: 5.0, limit_mm: 0.03, ..args() };
