@@ -500,15 +500,15 @@ impl Gcs {
             "TMN?" => self.axis_query(args, out, |out| out.mm(ctl.config().travel_min_nm))?,
             "TMX?" => self.axis_query(args, out, |out| out.mm(ctl.config().travel_max_nm))?,
             "VEL?" => {
-                let v = f64::from(ctl.config().velocity_max_nm_s) * 1e-6;
+                let v = f64::from(ctl.config().velocity_max_nm_s / 1e6);
                 self.axis_query(args, out, |out| out.general(v))?
             }
             "ACC?" => {
-                let v = f64::from(ctl.config().accel_max_nm_s2) * 1e-6;
+                let v = f64::from(ctl.config().accel_max_nm_s2 / 1e6);
                 self.axis_query(args, out, |out| out.general(v))?
             }
             "DEC?" => {
-                let v = f64::from(ctl.config().decel_max_nm_s2) * 1e-6;
+                let v = f64::from(ctl.config().decel_max_nm_s2 / 1e6);
                 self.axis_query(args, out, |out| out.general(v))?
             }
             "XPF?" => {

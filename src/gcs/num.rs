@@ -87,6 +87,13 @@ pub fn parse_decimal(t: &[u8]) -> Option<Decimal> {
     Some(Decimal { negative, mantissa, exponent: exponent.clamp(-2 * MAX_EXPONENT, 2 * MAX_EXPONENT) })
 }
 
+/// Powers of ten exact in f64 (up to 10^22): one multiplication or division instead of a loop
+/// (f64 is software arithmetic on a Cortex-M4).
+const POW10: [f64; 23] = [
+    1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18,
+    1e19, 1e20, 1e21, 1e22,
+];
+
 fn pow10_u128(n: u32) -> Option<u128> {
     10u128.checked_pow(n)
 }
@@ -153,10 +160,7 @@ impl Decimal {
                 return Some(0.0);
             }
         }
-        let mut p = 1.0f64;
-        for _ in 0..e.unsigned_abs() {
-            p *= 10.0;
-        }
+        let p = POW10.get(e.unsigned_abs() as usize).copied().unwrap_or(1e22);
         v = if e >= 0 { v * p } else { v / p };
         if !v.is_finite() {
             return None;
@@ -259,23 +263,21 @@ pub fn write_scaled(out: &mut dyn Sink, value: i64, decimals: u32) -> bool {
 /// beyond ±9.2e18 / 10^decimals saturate; NaN prints as 0.
 pub fn write_fixed(out: &mut dyn Sink, v: f64, decimals: u32) -> bool {
     let decimals = decimals.min(18);
-    let mut p = 1.0f64;
-    for _ in 0..decimals {
-        p *= 10.0;
-    }
+    let p = POW10.get(decimals as usize).copied().unwrap_or(1e18);
     let x = v * p;
     let r = if x >= 0.0 { x + 0.5 } else { x - 0.5 };
     // `as` saturates and maps NaN to 0.
     write_scaled(out, r as i64, decimals)
 }
 
-/// About seven significant digits (f32 precision), trailing zeros trimmed: `0.92`, `2200`,
-/// `0.0002`, `-50`.
+/// About seven significant digits (the settings are f32), trailing zeros trimmed: `0.92`,
+/// `2200`, `0.0002`, `-50`. Computed in f32, which the Cortex-M4F does in hardware.
 pub fn write_general(out: &mut dyn Sink, v: f64) -> bool {
+    let v = v as f32;
     let a = if v < 0.0 { -v } else { v };
     // Decimal exponent of the leading digit, bounded search.
     let mut e: i32 = 0;
-    let mut p = 1.0f64;
+    let mut p = 1.0f32;
     if a >= 1.0 {
         while a >= p * 10.0 && e < 18 {
             p *= 10.0;
@@ -288,8 +290,15 @@ pub fn write_general(out: &mut dyn Sink, v: f64) -> bool {
         }
     }
     let decimals = (6 - e).clamp(0, 18) as u32;
+    let mut scale = 1.0f32;
+    for _ in 0..decimals {
+        scale *= 10.0;
+    }
+    let x = v * scale;
+    let r = if x >= 0.0 { x + 0.5 } else { x - 0.5 };
     let mut buf: Vec<u8, 48> = Vec::new();
-    if !write_fixed(&mut buf, v, decimals) {
+    // `as` saturates and maps NaN to 0.
+    if !write_scaled(&mut buf, r as i64, decimals) {
         return false;
     }
     let mut s: &[u8] = &buf;

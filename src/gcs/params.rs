@@ -69,7 +69,8 @@ macro_rules! f32_field {
             $id,
             $group,
             $desc,
-            |c| f64::from(c.$($field).+) / $factor,
+            // f32 division: hardware on the board; the value is an f32 anyway.
+            |c| f64::from(c.$($field).+ / ($factor as f32)),
             |c, v| match f32_of(v * $factor) {
                 Some(x) => {
                     c.$($field).+ = x;
