@@ -49,6 +49,10 @@ pub enum CommandError {
     PreloadInvalid,
     PreloadOutOfWindow,
     InvalidValue,
+    /// Servo on where the command needs it off (open-loop stepping).
+    ServoOn,
+    /// Referencing in progress.
+    Busy,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -62,7 +66,22 @@ pub enum State {
     Holding,
     /// Moving open loop toward a reference mark.
     Referencing,
+    /// Open-loop stepping (servo off): a given number of drive cycles at a given amplitude and
+    /// frequency.
+    OpenLoop,
     Fault(FaultCode),
+}
+
+/// What referencing looks for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ReferenceSignal {
+    /// The encoder index if the scale has one: searched toward −x first; at the negative limit
+    /// switch the search turns round; reaching the positive one means there is no index, and
+    /// the search goes back to reference on the negative limit switch.
+    Index,
+    /// The negative limit switch (stages without an index).
+    NegativeLimit,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -110,6 +129,17 @@ pub struct ControllerConfig {
     pub encoder_jump_counts: i32,
     pub travel_min_nm: i64,
     pub travel_max_nm: i64,
+    /// Closed-loop speed, speed-up and braking limits (as PI's VEL, ACC, DEC). The profile uses
+    /// the lower of these and what the thrust model allows at the measured preload.
+    pub velocity_max_nm_s: f32,
+    pub accel_max_nm_s2: f32,
+    pub decel_max_nm_s2: f32,
+    /// Referencing: the mark, the position it is given, the drive used to search for it and how
+    /// long the search may take.
+    pub reference_signal: ReferenceSignal,
+    pub reference_position_nm: i64,
+    pub reference_drive_v: f32,
+    pub reference_timeout_s: f32,
 }
 
 /// What the board gives each period.
@@ -121,6 +151,9 @@ pub struct Inputs {
     pub preload_word: u16,
     /// Encoder index seen since the last period.
     pub index: bool,
+    /// Limit switches (active = the slider is at or beyond the end of travel on that side).
+    pub negative_limit: bool,
+    pub positive_limit: bool,
 }
 
 /// What the board applies during the next period.
@@ -168,6 +201,18 @@ pub struct Controller {
     observed_bias_n: f32,
     prev_speed_nm_s: f32,
     decel_nm_s2: f32,
+    /// Referencing: search direction and time spent.
+    reference_dir: i8,
+    reference_s: f32,
+    /// Index search fell back to the negative limit switch.
+    reference_on_limit: bool,
+    reference_failures: u32,
+    faults: u32,
+    /// Open-loop stepping: periods left, amplitude, frequency, direction.
+    open_loop_periods: u32,
+    open_loop_v: f32,
+    open_loop_hz: f32,
+    open_loop_dir: i8,
 }
 
 /// Highest speed from which a stop at `accel` ends within `distance` (v = √(2·a·d)).
@@ -190,6 +235,7 @@ impl Controller {
         if samples as usize != DAC_SAMPLES_PER_STEP || cfg.loop_hz == 0 {
             return Err(CommandError::InvalidValue);
         }
+        validate_settings(&cfg)?;
         let mut generator = QuadratureGenerator::new(cfg.dac);
         generator.set_frequency_hz(cfg.drive_freq_hz);
         Ok(Controller {
@@ -218,6 +264,15 @@ impl Controller {
             observed_bias_n: cfg.expected_load_n,
             prev_speed_nm_s: 0.0,
             decel_nm_s2: 1.0,
+            reference_dir: -1,
+            reference_s: 0.0,
+            reference_on_limit: false,
+            reference_failures: 0,
+            faults: 0,
+            open_loop_periods: 0,
+            open_loop_v: 0.0,
+            open_loop_hz: 0.0,
+            open_loop_dir: 1,
             cfg,
         })
     }
@@ -267,6 +322,54 @@ impl Controller {
     pub fn max_following_error_nm(&self) -> f32 {
         self.max_following_error_nm
     }
+    /// Referencing in progress (PI's "controller busy").
+    pub fn referencing(&self) -> bool {
+        self.state == State::Referencing
+    }
+    /// The active fault, if any.
+    pub fn fault(&self) -> Option<FaultCode> {
+        match self.state {
+            State::Fault(code) => Some(code),
+            _ => None,
+        }
+    }
+    /// Faults since power-up (wraps): a change tells the protocol a fault happened.
+    pub fn fault_count(&self) -> u32 {
+        self.faults
+    }
+    /// Referencing searches that ended without finding the mark (wraps).
+    pub fn reference_failure_count(&self) -> u32 {
+        self.reference_failures
+    }
+    /// Motion in progress: a closed-loop move, referencing or open-loop stepping.
+    pub fn in_motion(&self) -> bool {
+        match self.state {
+            State::Referencing | State::OpenLoop => true,
+            State::Moving | State::Holding => !self.profile.done(),
+            State::Idle | State::Fault(_) => false,
+        }
+    }
+
+    /// Replaces the settings after checking them. What the hardware fixes (loop and DAC rates,
+    /// DAC range, encoder resolution, motor table) cannot change at run time.
+    pub fn set_config(&mut self, cfg: ControllerConfig) -> Result<(), CommandError> {
+        let c = &self.cfg;
+        if cfg.loop_hz != c.loop_hz
+            || cfg.dac != c.dac
+            || cfg.encoder_nm_per_count != c.encoder_nm_per_count
+            || cfg.motor != c.motor
+        {
+            return Err(CommandError::InvalidValue);
+        }
+        validate_settings(&cfg)?;
+        if cfg.preload != self.cfg.preload {
+            // Re-primed by the next sample.
+            self.preload = PreloadCell::new(cfg.preload);
+        }
+        self.cfg = cfg;
+        Ok(())
+    }
+
     /// As PI's ONT?: holding within the window for the settle time.
     pub fn on_target(&self) -> bool {
         self.state == State::Holding && self.on_target_s >= self.cfg.settle_time_s
@@ -320,6 +423,9 @@ impl Controller {
         if let State::Fault(code) = self.state {
             return Err(CommandError::Faulted(code));
         }
+        if self.state == State::Referencing {
+            return Err(CommandError::Busy);
+        }
         if !self.servo {
             return Err(CommandError::ServoOff);
         }
@@ -346,22 +452,82 @@ impl Controller {
         self.move_to(self.profile.target_nm().saturating_add(delta_nm))
     }
 
-    /// Smooth stop: decelerate along the profile and hold where it ends.
+    /// Smooth stop: decelerate along the profile and hold where it ends. Referencing and
+    /// open-loop stepping stop at once.
     pub fn halt(&mut self) {
-        if matches!(self.state, State::Moving) {
-            let a = self.accel_limit_nm_s2();
-            let p = self.profile.stopping_point_nm(a);
-            self.profile.set_target(p);
+        match self.state {
+            State::Moving => {
+                let a = self.accel_limit_nm_s2();
+                let p = self.profile.stopping_point_nm(a);
+                self.profile.set_target(p);
+            }
+            State::Referencing | State::OpenLoop => self.stop(),
+            _ => {}
         }
     }
 
-    /// Immediate stop: hold the present position.
+    /// Stop as fast as the motor can (PI's STP): a closed-loop move brakes along the profile at
+    /// the model's braking rate, whatever the deceleration limit says — the slider's inertia
+    /// makes a stop on the spot impossible, and a reference that stopped dead would only build
+    /// up following error. Referencing and open-loop stepping end at once: hold there (servo on)
+    /// or go quiet (servo off).
     pub fn stop(&mut self) {
-        if matches!(self.state, State::Moving | State::Holding | State::Referencing) {
+        if self.state == State::Moving {
+            let a = self.model_brake_nm_s2();
+            let p = self.profile.stopping_point_nm(a);
+            self.profile.set_target(p);
+            self.decel_nm_s2 = a;
+            return;
+        }
+        if matches!(self.state, State::Holding | State::Referencing | State::OpenLoop) {
             let here = self.position_nm();
             self.profile.reset(here);
-            self.enter_hold();
+            self.open_loop_periods = 0;
+            if self.servo {
+                self.enter_hold();
+            } else {
+                self.state = State::Idle;
+                self.generator.ramp_to_quiet();
+            }
         }
+    }
+
+    /// Open-loop stepping with the servo off: `cycles` drive periods (the sign gives the
+    /// direction) at `amplitude_v` peak-to-peak and `frequency_hz`, then quiet.
+    pub fn open_loop_step(
+        &mut self,
+        cycles: i32,
+        amplitude_v: f32,
+        frequency_hz: f32,
+    ) -> Result<(), CommandError> {
+        if let State::Fault(code) = self.state {
+            return Err(CommandError::Faulted(code));
+        }
+        if self.servo {
+            return Err(CommandError::ServoOn);
+        }
+        if self.state == State::Referencing {
+            return Err(CommandError::Busy);
+        }
+        let d = &self.cfg.dac;
+        let amplitude_ok =
+            amplitude_v.is_finite() && amplitude_v >= 0.0 && amplitude_v <= self.cfg.max_drive_v;
+        let freq_ok =
+            frequency_hz.is_finite() && frequency_hz >= d.min_freq_hz && frequency_hz <= d.max_freq_hz;
+        if !amplitude_ok || !freq_ok || cycles == 0 {
+            return Err(CommandError::InvalidValue);
+        }
+        self.check_preload()?;
+        // Periods of the control loop that hold `cycles` drive periods, rounded to nearest.
+        let periods =
+            f64::from(cycles.unsigned_abs()) * f64::from(self.cfg.loop_hz) / f64::from(frequency_hz);
+        self.open_loop_periods = (periods + 0.5).min(f64::from(u32::MAX)) as u32;
+        self.open_loop_v = amplitude_v;
+        self.open_loop_hz = frequency_hz;
+        self.open_loop_dir = if cycles > 0 { 1 } else { -1 };
+        self.mode = Mode::Coarse;
+        self.state = State::OpenLoop;
+        Ok(())
     }
 
     pub fn clear_fault(&mut self) {
@@ -385,6 +551,13 @@ impl Controller {
 
     /// Moves open loop toward negative positions until the encoder index is seen, then sets the
     /// position there to zero.
+    ///
+    /// With [`ReferenceSignal::Index`] the search turns round at the negative limit switch and,
+    /// finding no index up to the positive one, references on the negative switch after all;
+    /// with [`ReferenceSignal::NegativeLimit`] the switch is the mark.
+    /// The mark's position becomes `reference_position_nm`. Afterwards the controller holds there
+    /// (servo on) or goes quiet (servo off). A search that runs out of time or switches fails:
+    /// not referenced, [`Self::reference_failure_count`] counts it.
     pub fn start_referencing(&mut self) -> Result<(), CommandError> {
         if let State::Fault(code) = self.state {
             return Err(CommandError::Faulted(code));
@@ -393,6 +566,10 @@ impl Controller {
         self.state = State::Referencing;
         self.mode = Mode::Coarse;
         self.referenced = false;
+        self.reference_dir = -1;
+        self.reference_s = 0.0;
+        self.reference_on_limit = false;
+        self.open_loop_periods = 0;
         Ok(())
     }
 
@@ -402,6 +579,7 @@ impl Controller {
     }
 
     fn trip(&mut self, code: FaultCode) {
+        self.faults = self.faults.wrapping_add(1);
         self.state = State::Fault(code);
         self.servo = false;
         self.mode = Mode::Coarse;
@@ -415,11 +593,16 @@ impl Controller {
         let dir = if self.profile.target_nm() >= self.profile.position_nm() { 1.0 } else { -1.0 };
         let load = (dir * self.thrust_bias_n).max(0.0);
         let v: f32 = p.speed_at_load_mm_s(Fx::saturating_from_num(load)).to_num();
-        v * 1e6 * self.cfg.speed_fraction
+        (v * 1e6 * self.cfg.speed_fraction).min(self.cfg.velocity_max_nm_s)
     }
 
-    /// Braking limit: reverse drive at full voltage brakes with at least the stall force.
+    /// Braking limit: the model's (below) within the user's deceleration limit.
     fn accel_limit_nm_s2(&self) -> f32 {
+        self.model_brake_nm_s2().min(self.cfg.decel_max_nm_s2)
+    }
+
+    /// The model's braking: reverse drive at full voltage brakes with at least the stall force.
+    fn model_brake_nm_s2(&self) -> f32 {
         let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>().max(1e-3);
         let stall = self.thrust_limits().map_or(0.0, |(f, _)| f);
         // Leave the load estimate's share of the thrust for the load.
@@ -438,16 +621,27 @@ impl Controller {
         let load = v.signum() * self.thrust_bias_n;
         let stall: f32 = p.stall_force_n().to_num();
         let usable = (thrust - load.max(0.0)).max(0.05 * stall);
-        usable / mass * 1e9 * self.cfg.accel_fraction
+        (usable / mass * 1e9 * self.cfg.accel_fraction).min(self.cfg.accel_max_nm_s2)
     }
 
     /// One control period.
     pub fn step(&mut self, inputs: &Inputs) -> Outputs {
         self.sense(inputs);
         self.supervise();
+        // A limit switch in the direction of a closed-loop move stops it where it is.
+        if self.state == State::Moving {
+            let v = self.profile.velocity_nm_s();
+            let toward = self.profile.target_nm() - self.position_nm();
+            if (inputs.negative_limit && (v < 0.0 || toward < 0))
+                || (inputs.positive_limit && (v > 0.0 || toward > 0))
+            {
+                self.stop();
+            }
+        }
         match self.state {
             State::Moving | State::Holding => self.regulate(),
-            State::Referencing => self.reference(inputs.index),
+            State::Referencing => self.reference(inputs),
+            State::OpenLoop => self.open_loop(inputs),
             State::Idle | State::Fault(_) => self.generator.ramp_to_quiet(),
         }
         let mut out = Outputs { dac: [[0; 2]; DAC_SAMPLES_PER_STEP], amp_enable: false };
@@ -488,7 +682,8 @@ impl Controller {
         if let State::Fault(_) = self.state {
             return;
         }
-        let active = matches!(self.state, State::Moving | State::Holding | State::Referencing);
+        let active =
+            matches!(self.state, State::Moving | State::Holding | State::Referencing | State::OpenLoop);
         if let Some(e) = self.encoder {
             if e.last_delta().abs() > self.cfg.encoder_jump_counts {
                 self.trip(FaultCode::EncoderJump);
@@ -502,6 +697,10 @@ impl Controller {
             Err(CommandError::PreloadInvalid) => return self.trip(FaultCode::PreloadSensor),
             Err(_) => return self.trip(FaultCode::PreloadOutOfWindow),
             Ok(_) => {}
+        }
+        if matches!(self.state, State::Referencing | State::OpenLoop) {
+            // Open-loop motion: no reference to follow, no stall judgement.
+            return;
         }
         let err = (self.profile.position_nm() - self.position_nm()) as f32;
         self.max_following_error_nm = self.max_following_error_nm.max(err.abs());
@@ -706,16 +905,136 @@ impl Controller {
         self.generator.set_amplitude_v(volts);
     }
 
-    fn reference(&mut self, index: bool) {
-        if index {
-            self.generator.set_amplitude_v(0.0);
-            self.set_reference_here(0);
-            self.enter_hold();
+    fn reference(&mut self, inputs: &Inputs) {
+        let here = self.position_nm();
+        // No profile to follow while searching: keep the reference on the slider.
+        self.profile.reset(here);
+        let found = match self.cfg.reference_signal {
+            ReferenceSignal::Index if self.reference_on_limit => inputs.negative_limit,
+            ReferenceSignal::Index => inputs.index,
+            ReferenceSignal::NegativeLimit => inputs.negative_limit,
+        };
+        if found {
+            self.set_reference_here(self.cfg.reference_position_nm);
+            self.end_open_loop_motion();
             return;
         }
-        self.generator.set_direction(-1);
+        if self.cfg.reference_signal == ReferenceSignal::Index && !self.reference_on_limit {
+            if inputs.negative_limit && self.reference_dir < 0 {
+                self.reference_dir = 1;
+            } else if inputs.positive_limit && self.reference_dir > 0 {
+                // The whole travel without an index: the scale has none. Back to the negative
+                // limit switch and reference on it.
+                self.reference_on_limit = true;
+                self.reference_dir = -1;
+            }
+        }
+        self.reference_s += self.dt_s;
+        if self.reference_s > self.cfg.reference_timeout_s {
+            return self.reference_failed();
+        }
+        self.generator.set_direction(self.reference_dir);
         self.generator.set_frequency_hz(self.cfg.drive_freq_hz);
-        self.generator.set_amplitude_v(0.5 * self.cfg.max_drive_v);
-        self.drive_v = 0.5 * self.cfg.max_drive_v;
+        self.generator.set_amplitude_v(self.cfg.reference_drive_v);
+        self.drive_v = self.cfg.reference_drive_v;
+    }
+
+    fn reference_failed(&mut self) {
+        self.reference_failures = self.reference_failures.wrapping_add(1);
+        self.referenced = false;
+        self.end_open_loop_motion();
+    }
+
+    /// End of referencing or open-loop stepping: hold here with the servo on, else go quiet.
+    fn end_open_loop_motion(&mut self) {
+        self.generator.set_amplitude_v(0.0);
+        self.drive_v = 0.0;
+        self.open_loop_periods = 0;
+        let here = self.position_nm();
+        self.profile.reset(here);
+        if self.servo {
+            self.enter_hold();
+        } else {
+            self.state = State::Idle;
+            self.generator.ramp_to_quiet();
+        }
+    }
+
+    fn open_loop(&mut self, inputs: &Inputs) {
+        let here = self.position_nm();
+        self.profile.reset(here);
+        let blocked = (self.open_loop_dir < 0 && inputs.negative_limit)
+            || (self.open_loop_dir > 0 && inputs.positive_limit);
+        if self.open_loop_periods == 0 || blocked {
+            return self.end_open_loop_motion();
+        }
+        self.open_loop_periods -= 1;
+        self.generator.set_direction(self.open_loop_dir);
+        self.generator.set_frequency_hz(self.open_loop_hz);
+        self.generator.set_amplitude_v(self.open_loop_v);
+        self.drive_v = self.open_loop_v;
+    }
+}
+
+fn finite_positive(x: f32) -> bool {
+    x.is_finite() && x > 0.0
+}
+fn finite_non_negative(x: f32) -> bool {
+    x.is_finite() && x >= 0.0
+}
+fn fraction(x: f32) -> bool {
+    x.is_finite() && x > 0.0 && x <= 1.0
+}
+
+/// Largest travel limit either way (1 m): positions stay far from i64 and f32 trouble.
+pub const MAX_TRAVEL_NM: i64 = 1_000_000_000;
+
+/// Checks the settings a user may change for values the controller can work with.
+pub fn validate_settings(c: &ControllerConfig) -> Result<(), CommandError> {
+    let d = &c.dac;
+    let range_v = d.max_v - d.min_v;
+    let p = &c.preload;
+    let ok = finite_positive(c.drive_freq_hz)
+        && c.drive_freq_hz >= d.min_freq_hz
+        && c.drive_freq_hz <= d.max_freq_hz
+        && finite_positive(c.max_drive_v)
+        && c.max_drive_v <= range_v
+        && finite_non_negative(c.preload_min_n)
+        && c.preload_max_n.is_finite()
+        && c.preload_min_n < c.preload_max_n
+        && fraction(c.speed_fraction)
+        && fraction(c.accel_fraction)
+        && finite_non_negative(c.kp_per_s)
+        && finite_non_negative(c.ki_n_per_nm_s)
+        && finite_non_negative(c.fb_kp_v_per_nm)
+        && finite_non_negative(c.fb_ki_v_per_nm_s)
+        && c.expected_load_n.is_finite()
+        && finite_positive(c.profile_wait_lag_nm)
+        && finite_positive(c.approach_speed_nm_s)
+        && finite_non_negative(c.fine_window_nm)
+        && fraction(c.fine_gain)
+        && c.on_target_window_nm >= 0
+        && finite_non_negative(c.settle_time_s)
+        && finite_positive(c.following_error_limit_nm)
+        && finite_positive(c.stall_time_s)
+        && c.encoder_jump_counts > 0
+        && c.travel_min_nm < c.travel_max_nm
+        && c.travel_min_nm >= -MAX_TRAVEL_NM
+        && c.travel_max_nm <= MAX_TRAVEL_NM
+        && c.reference_position_nm.abs() <= MAX_TRAVEL_NM
+        && finite_positive(c.velocity_max_nm_s)
+        && finite_positive(c.accel_max_nm_s2)
+        && finite_positive(c.decel_max_nm_s2)
+        && finite_positive(c.reference_drive_v)
+        && c.reference_drive_v <= c.max_drive_v
+        && finite_positive(c.reference_timeout_s)
+        && p.newton_per_word.is_finite()
+        && p.newton_per_word != 0.0
+        && p.min_valid_word < p.max_valid_word
+        && fraction(p.filter_alpha);
+    if ok {
+        Ok(())
+    } else {
+        Err(CommandError::InvalidValue)
     }
 }

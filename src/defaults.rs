@@ -4,7 +4,7 @@
 //! host-sim derives its board from a parameter file and a test checks that, for the prototype
 //! file, it arrives at exactly these values.
 
-use crate::controller::{ControllerConfig, DAC_SAMPLES_PER_STEP};
+use crate::controller::{ControllerConfig, ReferenceSignal, DAC_SAMPLES_PER_STEP};
 use crate::generator::DacConfig;
 use crate::motor_table::PROTOTYPE_MOTOR;
 use crate::sensors::PreloadCalibration;
@@ -75,6 +75,14 @@ pub fn controller_config() -> ControllerConfig {
         encoder_jump_counts: 200,
         travel_min_nm: -50_000_000,
         travel_max_nm: 50_000_000,
+        // VEL/ACC/DEC: high enough that the thrust model's limits govern unless a user lowers them.
+        velocity_max_nm_s: 10_000_000.0,
+        accel_max_nm_s2: 1e9,
+        decel_max_nm_s2: 1e9,
+        reference_signal: ReferenceSignal::Index,
+        reference_position_nm: 0,
+        reference_drive_v: 50.0,
+        reference_timeout_s: 200.0,
     };
     cfg.preload_max_n = full_contact_preload_n(&cfg);
     cfg

@@ -12,6 +12,7 @@
 
 pub mod controller;
 pub mod defaults;
+pub mod gcs;
 pub mod generator;
 pub mod model;
 pub mod motor_table;

@@ -6,5 +6,6 @@ pub mod paper;
 pub mod params;
 pub mod plant;
 pub mod plot;
+pub mod serve;
 pub mod sil;
 pub mod steady;

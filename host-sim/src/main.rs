@@ -75,6 +75,9 @@ enum Command {
     /// Print the firmware's baked motor table for the parameter file, as Rust source:
     /// `host-sim firmware-table > src/motor_table.rs` after changing the motor's parameters.
     FirmwareTable,
+    /// The virtual controller: the core against the plant in real time, speaking PI GCS 2.0 over
+    /// TCP or a pty (see the README's UART commands section).
+    Serve(host_sim::serve::ServeArgs),
 }
 
 #[derive(clap::Args)]
@@ -277,6 +280,7 @@ fn run(cli: Cli) -> Result<()> {
             let c = curve::compute(&params, op, 1, 6, 0.9, progress("curve"));
             print_curve(&c);
         }
+        Command::Serve(args) => host_sim::serve::run(&params, &args)?,
         Command::FirmwareTable => {
             let source = cli.params.as_ref().map_or_else(
                 || "host-sim/params/prototype.toml".to_string(),

@@ -124,6 +124,8 @@ pub fn command_error_text(e: piezo_drive::controller::CommandError) -> &'static 
         PreloadInvalid => "preload sensor reading invalid",
         PreloadOutOfWindow => "preload outside the usable window",
         InvalidValue => "invalid value",
+        ServoOn => "servo is on",
+        Busy => "referencing in progress",
     }
 }
 

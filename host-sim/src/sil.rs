@@ -104,6 +104,14 @@ pub struct Sil {
     dac_period_s: f64,
     /// Injected encoder disturbance (counts), for fault tests.
     pub encoder_offset_counts: i64,
+    /// Encoder index mark on the scale (plant slider position, m): the index input is set in
+    /// the period in which the slider crosses it. None: the scale has no index.
+    pub index_position_m: Option<f64>,
+    /// Limit switches (plant slider position, m): active at or beyond each end. None: no switches.
+    pub limits_m: Option<(f64, f64)>,
+    last_slider_m: f64,
+    /// Wall-clock time of the last controller step (ns).
+    pub last_step_ns: u64,
 }
 
 impl Sil {
@@ -122,6 +130,10 @@ impl Sil {
             plant_steps_per_period: (period_s / p.integrator.step_s).round() as u32,
             dac_period_s: 1.0 / p.amplifier.dac_rate_hz,
             encoder_offset_counts: 0,
+            index_position_m: None,
+            limits_m: None,
+            last_slider_m: 0.0,
+            last_step_ns: 0,
         })
     }
 
@@ -132,17 +144,26 @@ impl Sil {
     /// What the board reads now.
     pub fn inputs(&mut self) -> Inputs {
         let counts = self.plant.encoder_counts() + self.encoder_offset_counts;
+        let x = self.plant.slider_position_m();
+        let index = self.index_position_m.is_some_and(|xi| (self.last_slider_m < xi) != (x < xi));
+        self.last_slider_m = x;
+        let (negative_limit, positive_limit) =
+            self.limits_m.map_or((false, false), |(lo, hi)| (x <= lo, x >= hi));
         Inputs {
             encoder_raw: counts as u16, // the timer's 16-bit counter wraps
             preload_word: self.plant.force_cell_word(&mut self.rng).min(u32::from(u16::MAX)) as u16,
-            index: false,
+            index,
+            negative_limit,
+            positive_limit,
         }
     }
 
     /// One control period: the controller sees the sensors, its outputs take effect next period.
     pub fn period(&mut self) -> Outputs {
         let inputs = self.inputs();
+        let t0 = std::time::Instant::now();
         let out = self.controller.step(&inputs);
+        self.last_step_ns = u64::try_from(t0.elapsed().as_nanos()).unwrap_or(u64::MAX);
         let applied = std::mem::replace(&mut self.pending, out);
         self.apply(&applied);
         out

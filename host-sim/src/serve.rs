@@ -1,0 +1,636 @@
+//! `host-sim serve`: the virtual controller. The firmware's control core runs against the plant
+//! paced to the wall clock, and speaks PI GCS 2.0 through the very protocol module the firmware
+//! uses ([`piezo_drive::gcs`]), over TCP (`--tcp 127.0.0.1:PORT`) or a pseudo-terminal (`--pty`).
+//! One client at a time; a client that disconnects mid-line leaves nothing behind.
+
+use crate::params::Params;
+use crate::sil::{controller_config, Sil};
+use anyhow::{bail, Context, Result};
+use piezo_drive::controller::ControllerConfig;
+use piezo_drive::gcs::{params::PARAMS, Board, Gcs, LoopStats, Pending, Reply};
+use std::fmt::Write as _;
+use std::io::{ErrorKind, Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct ServeArgs {
+    /// Listen for one GCS client at a time on this TCP address (e.g. 127.0.0.1:50000).
+    #[arg(long, value_name = "ADDR:PORT")]
+    pub tcp: Option<String>,
+    /// Open a pseudo-terminal and print its path (a serial port for clients such as PIPython's
+    /// `ConnectRS232`).
+    #[arg(long)]
+    pub pty: bool,
+    /// Log every exchange (bytes in, bytes out) to stderr.
+    #[arg(long)]
+    pub verbose: bool,
+    /// Preload force F0 of the simulated motor (N).
+    #[arg(long, default_value_t = 16.0)]
+    pub preload_n: f64,
+    /// Encoder index mark at this slider position of the plant (µm; the slider starts at 0).
+    #[arg(long, default_value_t = -20.0, allow_negative_numbers = true)]
+    pub index_um: f64,
+    /// Limit switches this far beyond the index on either side (mm).
+    #[arg(long, default_value_t = 55.0)]
+    pub limit_mm: f64,
+    /// File for `WPA` (parameters as `SPA` lines, replayed at start-up); in memory when absent.
+    #[arg(long, value_name = "FILE")]
+    pub store: Option<PathBuf>,
+    /// Stop after this many seconds (for tests); runs until killed when absent.
+    #[arg(long, value_name = "S")]
+    pub duration_s: Option<f64>,
+}
+
+/// The simulated board's side of the protocol.
+pub struct SimBoard {
+    store: Option<PathBuf>,
+    /// Last `WPA` content when there is no file.
+    pub stored: Option<String>,
+    pub stats: LoopStats,
+}
+
+/// `SPA` lines for every writable parameter: the stored form of a configuration.
+pub fn parameter_lines(cfg: &ControllerConfig) -> String {
+    let mut gcs = Gcs::new();
+    let mut ctl = match piezo_drive::controller::Controller::new(*cfg) {
+        Ok(c) => c,
+        Err(_) => return String::new(),
+    };
+    let mut reply = Reply::new();
+    let mut board = SimBoard { store: None, stored: None, stats: LoopStats::default() };
+    for b in b"SPA?\n" {
+        if let Some(p) = gcs.push_byte(*b) {
+            gcs.execute(&p, &mut ctl, &mut board, &mut reply);
+        }
+    }
+    let text = String::from_utf8_lossy(&reply).into_owned();
+    let mut s = String::new();
+    for line in text.lines() {
+        // "1 0x1=40" → "SPA 1 0x1 40", writable parameters only.
+        let line = line.trim_end();
+        let Some((head, value)) = line.split_once('=') else { continue };
+        let Some(id) = head.split_whitespace().nth(1) else { continue };
+        let writable = u32::from_str_radix(id.trim_start_matches("0x"), 16)
+            .ok()
+            .and_then(|id| PARAMS.iter().find(|p| p.id == id))
+            .is_some_and(|p| !p.read_only);
+        if writable {
+            let _ = writeln!(s, "SPA 1 {id} {value}");
+        }
+    }
+    s
+}
+
+impl Board for SimBoard {
+    fn store_parameters(&mut self, cfg: &ControllerConfig) -> bool {
+        let text = parameter_lines(cfg);
+        match &self.store {
+            Some(path) => std::fs::write(path, text).is_ok(),
+            None => {
+                self.stored = Some(text);
+                true
+            }
+        }
+    }
+    fn serial_number(&self) -> u32 {
+        1
+    }
+    fn loop_stats(&self) -> LoopStats {
+        self.stats
+    }
+}
+
+/// Printable form of protocol bytes for the log.
+fn escape(bytes: &[u8]) -> String {
+    let mut s = String::new();
+    for &b in bytes {
+        match b {
+            b'\n' => s.push_str("\\n"),
+            b'\r' => s.push_str("\\r"),
+            b'\t' => s.push_str("\\t"),
+            0x20..=0x7e => s.push(char::from(b)),
+            _ => {
+                let _ = write!(s, "\\x{b:02x}");
+            }
+        }
+    }
+    s
+}
+
+/// A byte stream to one client.
+trait Link {
+    /// Bytes now available (empty when none); Err when the client went away.
+    fn poll_read(&mut self, buf: &mut [u8]) -> std::io::Result<usize>;
+    fn write_all_bytes(&mut self, bytes: &[u8]) -> std::io::Result<()>;
+}
+
+impl Link for TcpStream {
+    fn poll_read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        match self.read(buf) {
+            Ok(0) => Err(std::io::Error::new(ErrorKind::UnexpectedEof, "client closed the connection")),
+            Ok(n) => Ok(n),
+            Err(e) if e.kind() == ErrorKind::WouldBlock || e.kind() == ErrorKind::Interrupted => Ok(0),
+            Err(e) => Err(e),
+        }
+    }
+    fn write_all_bytes(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        self.set_nonblocking(false)?;
+        let r = self.write_all(bytes).and_then(|_| self.flush());
+        self.set_nonblocking(true)?;
+        r
+    }
+}
+
+/// The virtual controller: the board (controller + plant), the protocol, the pacing.
+pub struct VirtualController {
+    pub sil: Sil,
+    pub gcs: Gcs,
+    pub board: SimBoard,
+    verbose: bool,
+    start: Instant,
+    sim_start_s: f64,
+}
+
+impl VirtualController {
+    pub fn new(p: &Params, args: &ServeArgs) -> Result<Self> {
+        if !(args.preload_n.is_finite() && args.preload_n > 0.0 && args.preload_n <= 60.0) {
+            bail!("--preload-n must be in (0, 60] N, got {}", args.preload_n);
+        }
+        if !(args.index_um.is_finite() && args.index_um.abs() <= 50_000.0) {
+            bail!("--index-um must be within ±50000 µm, got {}", args.index_um);
+        }
+        if !(args.limit_mm.is_finite() && args.limit_mm > 0.0 && args.limit_mm <= 1000.0) {
+            bail!("--limit-mm must be in (0, 1000] mm, got {}", args.limit_mm);
+        }
+        let mut sil = Sil::new(p, controller_config(p), args.preload_n, 1)?;
+        let index_m = args.index_um * 1e-6;
+        sil.index_position_m = Some(index_m);
+        sil.limits_m = Some((index_m - args.limit_mm * 1e-3, index_m + args.limit_mm * 1e-3));
+        let mut vc = VirtualController {
+            sil,
+            gcs: Gcs::new(),
+            board: SimBoard { store: args.store.clone(), stored: None, stats: LoopStats::default() },
+            verbose: args.verbose,
+            start: Instant::now(),
+            sim_start_s: 0.0,
+        };
+        vc.board.stats.core_clock_hz = 1_000_000_000; // "cycles" are nanoseconds on the host
+                                                      // Parameters stored by an earlier WPA, replayed as the firmware loads them from flash.
+        if let Some(path) = &args.store {
+            if path.exists() {
+                let text =
+                    std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+                let mut sink = Reply::new();
+                vc.feed(text.as_bytes(), &mut sink);
+                if vc.gcs.latched_error() != 0 {
+                    bail!(
+                        "{}: stored parameters rejected (GCS error {})",
+                        path.display(),
+                        vc.gcs.latched_error()
+                    );
+                }
+            }
+        }
+        // Settle the force-cell filter before anyone talks to us.
+        vc.sil.run_until(0.05, |_| false);
+        vc.sim_start_s = vc.sil.time_s();
+        vc.start = Instant::now();
+        Ok(vc)
+    }
+
+    /// Runs the plant up to the wall clock (at most 0.1 s of catching up per call).
+    pub fn advance(&mut self) {
+        let wall = self.start.elapsed().as_secs_f64();
+        let behind = wall - (self.sil.time_s() - self.sim_start_s);
+        if behind > 0.1 {
+            // Fell behind (a stalled host): skip ahead rather than race.
+            self.board.stats.overruns = self.board.stats.overruns.saturating_add(1);
+            self.sim_start_s += behind - 0.1;
+        }
+        while self.sil.time_s() - self.sim_start_s < wall {
+            self.sil.period();
+            let ns = u32::try_from(self.sil.last_step_ns).unwrap_or(u32::MAX);
+            self.board.stats.step_cycles_last = ns;
+            self.board.stats.step_cycles_max = self.board.stats.step_cycles_max.max(ns);
+        }
+    }
+
+    /// Feeds received bytes through the protocol; replies are appended to `out`.
+    pub fn feed(&mut self, bytes: &[u8], out: &mut Reply) {
+        for &b in bytes {
+            if let Some(p) = self.gcs.push_byte(b) {
+                let before = out.len();
+                self.gcs.execute(&p, &mut self.sil.controller, &mut self.board, out);
+                if self.verbose {
+                    let cmd = match &p {
+                        Pending::Line(l) => escape(l),
+                        Pending::TooLong => "<line too long>".into(),
+                        Pending::Byte(b) => escape(&[*b]),
+                    };
+                    let reply = out.get(before..).map(escape).unwrap_or_default();
+                    eprintln!(
+                        "[{:9.4} s] > {cmd}  < {}{}",
+                        self.sil.time_s() - self.sim_start_s,
+                        if reply.is_empty() { "(nothing)" } else { &reply },
+                        match self.gcs.latched_error() {
+                            0 => String::new(),
+                            e => format!("  [error {e} latched]"),
+                        }
+                    );
+                }
+            }
+        }
+    }
+
+    /// Serves one client until it goes away (or `deadline` passes).
+    fn serve_client(&mut self, link: &mut dyn Link, deadline: Option<Instant>) -> Result<()> {
+        let mut buf = [0u8; 512];
+        loop {
+            if deadline.is_some_and(|d| Instant::now() >= d) {
+                return Ok(());
+            }
+            self.advance();
+            let n = match link.poll_read(&mut buf) {
+                Ok(n) => n,
+                Err(e) => {
+                    if self.verbose {
+                        eprintln!("client gone: {e}");
+                    }
+                    self.gcs.discard_partial_line();
+                    return Ok(());
+                }
+            };
+            if n == 0 {
+                std::thread::sleep(Duration::from_micros(500));
+                continue;
+            }
+            let mut rest = buf.get(..n).unwrap_or_default();
+            while !rest.is_empty() {
+                let mut out = Reply::new();
+                // Feed byte by byte so a large input never overflows the reply buffer.
+                let mut used = 0;
+                for (i, b) in rest.iter().enumerate() {
+                    self.feed(std::slice::from_ref(b), &mut out);
+                    used = i + 1;
+                    if out.len() > out.capacity() / 2 {
+                        break;
+                    }
+                }
+                rest = rest.get(used..).unwrap_or_default();
+                if !out.is_empty() {
+                    if let Err(e) = link.write_all_bytes(&out) {
+                        if self.verbose {
+                            eprintln!("client gone while replying: {e}");
+                        }
+                        self.gcs.discard_partial_line();
+                        return Ok(());
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(unix)]
+mod pty {
+    use anyhow::{bail, Result};
+    use std::ffi::CStr;
+    use std::fs::File;
+    use std::io::{ErrorKind, Read, Write};
+    use std::os::fd::FromRawFd;
+
+    /// Master side of a raw-mode pseudo-terminal; the slave stays open so the master never
+    /// sees a hang-up between clients.
+    pub struct Pty {
+        master: File,
+        _slave: File,
+        pub path: String,
+    }
+
+    impl Pty {
+        pub fn open() -> Result<Self> {
+            // SAFETY: plain libc calls on descriptors we own; every result is checked.
+            unsafe {
+                let fd = libc::posix_openpt(libc::O_RDWR | libc::O_NOCTTY);
+                if fd < 0 {
+                    bail!("posix_openpt failed: {}", std::io::Error::last_os_error());
+                }
+                let master = File::from_raw_fd(fd);
+                if libc::grantpt(fd) != 0 || libc::unlockpt(fd) != 0 {
+                    bail!("grantpt/unlockpt failed: {}", std::io::Error::last_os_error());
+                }
+                let mut name = [0 as libc::c_char; 256];
+                if libc::ptsname_r(fd, name.as_mut_ptr(), name.len()) != 0 {
+                    bail!("ptsname_r failed: {}", std::io::Error::last_os_error());
+                }
+                let path = CStr::from_ptr(name.as_ptr()).to_string_lossy().into_owned();
+                let sfd = libc::open(name.as_ptr(), libc::O_RDWR | libc::O_NOCTTY);
+                if sfd < 0 {
+                    bail!("opening {path} failed: {}", std::io::Error::last_os_error());
+                }
+                let slave = File::from_raw_fd(sfd);
+                // Raw mode: no echo, no line editing, no CR/LF translation either way.
+                let mut t: libc::termios = std::mem::zeroed();
+                if libc::tcgetattr(sfd, &mut t) != 0 {
+                    bail!("tcgetattr failed: {}", std::io::Error::last_os_error());
+                }
+                libc::cfmakeraw(&mut t);
+                if libc::tcsetattr(sfd, libc::TCSANOW, &t) != 0 {
+                    bail!("tcsetattr failed: {}", std::io::Error::last_os_error());
+                }
+                let flags = libc::fcntl(fd, libc::F_GETFL);
+                if flags < 0 || libc::fcntl(fd, libc::F_SETFL, flags | libc::O_NONBLOCK) != 0 {
+                    bail!("fcntl failed: {}", std::io::Error::last_os_error());
+                }
+                Ok(Pty { master, _slave: slave, path })
+            }
+        }
+    }
+
+    impl super::Link for Pty {
+        fn poll_read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            match self.master.read(buf) {
+                Ok(n) => Ok(n),
+                Err(e) if e.kind() == ErrorKind::WouldBlock || e.kind() == ErrorKind::Interrupted => Ok(0),
+                Err(e) => Err(e),
+            }
+        }
+        fn write_all_bytes(&mut self, mut bytes: &[u8]) -> std::io::Result<()> {
+            while !bytes.is_empty() {
+                match self.master.write(bytes) {
+                    Ok(n) => bytes = bytes.get(n..).unwrap_or_default(),
+                    Err(e) if e.kind() == ErrorKind::WouldBlock || e.kind() == ErrorKind::Interrupted => {
+                        std::thread::sleep(std::time::Duration::from_micros(200));
+                    }
+                    Err(e) => return Err(e),
+                }
+            }
+            Ok(())
+        }
+    }
+}
+
+/// `host-sim serve`.
+pub fn run(p: &Params, args: &ServeArgs) -> Result<()> {
+    if args.tcp.is_some() == args.pty {
+        bail!("give exactly one of --tcp ADDR:PORT and --pty");
+    }
+    if let Some(d) = args.duration_s {
+        if !(d.is_finite() && d > 0.0) {
+            bail!("--duration-s must be a positive number of seconds, got {d}");
+        }
+    }
+    let mut vc = VirtualController::new(p, args)?;
+    let deadline = args.duration_s.map(|d| Instant::now() + Duration::from_secs_f64(d));
+    if let Some(addr) = &args.tcp {
+        let listener = TcpListener::bind(addr).with_context(|| format!("binding {addr}"))?;
+        listener.set_nonblocking(true)?;
+        println!("listening on {}", listener.local_addr()?);
+        std::io::stdout().flush()?;
+        loop {
+            if deadline.is_some_and(|d| Instant::now() >= d) {
+                return Ok(());
+            }
+            vc.advance();
+            match listener.accept() {
+                Ok((mut stream, peer)) => {
+                    stream.set_nonblocking(true)?;
+                    let _ = stream.set_nodelay(true);
+                    if args.verbose {
+                        eprintln!("client {peer} connected");
+                    }
+                    vc.serve_client(&mut stream, deadline)?;
+                    if args.verbose {
+                        eprintln!("client {peer} done");
+                    }
+                }
+                Err(e) if e.kind() == ErrorKind::WouldBlock => std::thread::sleep(Duration::from_millis(1)),
+                Err(e) => return Err(e).context("accepting a client"),
+            }
+        }
+    }
+    #[cfg(unix)]
+    {
+        let mut link = pty::Pty::open()?;
+        println!("pty {}", link.path);
+        std::io::stdout().flush()?;
+        vc.serve_client(&mut link, deadline)
+    }
+    #[cfg(not(unix))]
+    bail!("--pty needs a Unix host")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use piezo_drive::controller::State;
+
+    fn args() -> ServeArgs {
+        ServeArgs {
+            tcp: None,
+            pty: false,
+            verbose: false,
+            preload_n: 16.0,
+            index_um: -20.0,
+            limit_mm: 55.0,
+            store: None,
+            duration_s: None,
+        }
+    }
+
+    fn send(vc: &mut VirtualController, text: &str) -> String {
+        let mut out = Reply::new();
+        vc.feed(text.as_bytes(), &mut out);
+        String::from_utf8_lossy(&out).into_owned()
+    }
+
+    /// Runs the plant (not paced) until `done` or `max_s` of plant time.
+    fn run_until(vc: &mut VirtualController, max_s: f64, done: impl Fn(&Sil) -> bool) -> bool {
+        vc.sil.run_until(max_s, done)
+    }
+
+    fn number(reply: &str) -> f64 {
+        reply.trim_end().split('=').nth(1).unwrap().parse().unwrap()
+    }
+
+    #[test]
+    fn frf_finds_the_emulated_index_and_moves_land_on_target() {
+        let p = Params::prototype();
+        let mut vc = VirtualController::new(&p, &args()).unwrap();
+        assert_eq!(send(&mut vc, "RON 1 1\nFRF 1\nERR?\n"), "0\n");
+        assert!(run_until(&mut vc, 1.0, |s| s.controller.state() != State::Referencing));
+        assert_eq!(send(&mut vc, "FRF? 1\nERR?\n"), "1=1\n0\n");
+        // The index is where the plant's slider crossed −20 µm: the controller's zero now sits
+        // there to within the distance covered in one control period at the search speed.
+        let pos_mm = number(&send(&mut vc, "POS?\n"));
+        let slider_um = vc.sil.plant.slider_position_m() * 1e6;
+        let zero_um = slider_um - pos_mm * 1e3;
+        assert!((zero_um - -20.0).abs() < 0.3, "zero at {zero_um} µm");
+        assert_eq!(send(&mut vc, "SVO 1 1\nMOV 1 0.05\nERR?\n"), "0\n");
+        assert!(run_until(&mut vc, 2.0, |s| s.controller.on_target()));
+        assert_eq!(send(&mut vc, "ONT?\n"), "1=1\n");
+        let pos_mm = number(&send(&mut vc, "POS?\n"));
+        assert!((pos_mm - 0.05).abs() <= 50e-6, "{pos_mm}");
+        let true_mm = (vc.sil.plant.slider_position_m() * 1e6 - zero_um) * 1e-3;
+        assert!((true_mm - 0.05).abs() < 0.4e-3, "plant at {true_mm} mm");
+    }
+
+    #[test]
+    fn stp_and_hlt_mid_move_brake_without_a_fault() {
+        let p = Params::prototype();
+        for stop in ["STP\n", "HLT 1\n", "\x18"] {
+            let mut vc = VirtualController::new(&p, &args()).unwrap();
+            assert_eq!(send(&mut vc, "RON 1 0\nSVO 1 1\nMOV 1 1\nERR?\n"), "0\n");
+            vc.sil.run_until(0.1, |_| false);
+            let moving_mm_s = vc.sil.plant.slider_velocity_m_s() * 1e3;
+            assert!(moving_mm_s > 1.0, "{moving_mm_s} mm/s");
+            assert_eq!(send(&mut vc, stop), "");
+            let stopped = vc.sil.run_until(0.5, |s| s.controller.on_target());
+            assert!(stopped, "{stop:?}: {:?}", vc.sil.controller.state());
+            assert_eq!(send(&mut vc, "ERR?\nXFT?\n\x05"), "10\n1=0 no fault\n0\n", "{stop:?}");
+            let pos_mm = number(&send(&mut vc, "POS?\n"));
+            assert!(pos_mm > 0.1 && pos_mm < 0.5, "{stop:?} stopped at {pos_mm} mm");
+        }
+    }
+
+    #[test]
+    fn servo_on_again_mid_move_changes_nothing() {
+        let p = Params::prototype();
+        let mut vc = VirtualController::new(&p, &args()).unwrap();
+        assert_eq!(send(&mut vc, "RON 1 0\nSVO 1 1\nMOV 1 0.4\nERR?\n"), "0\n");
+        vc.sil.run_until(0.1, |_| false);
+        assert_eq!(send(&mut vc, "SVO 1 1\nERR?\n\x05"), "0\n1\n");
+        assert!(vc.sil.run_until(1.0, |s| s.controller.on_target()));
+        assert_eq!(send(&mut vc, "ERR?\n"), "0\n");
+        assert!((number(&send(&mut vc, "POS?\n")) - 0.4).abs() <= 50e-6);
+    }
+
+    #[test]
+    fn frf_turns_round_at_the_negative_limit_when_the_index_is_behind() {
+        let p = Params::prototype();
+        // Index 20 µm above the start, negative switch 30 µm below it.
+        let a = ServeArgs { index_um: 20.0, limit_mm: 0.05, ..args() };
+        let mut vc = VirtualController::new(&p, &a).unwrap();
+        assert_eq!(send(&mut vc, "FRF\nERR?\n"), "0\n");
+        let mut lowest = f64::MAX;
+        let found = vc.sil.run_until(3.0, |s| {
+            lowest = lowest.min(s.plant.slider_position_m());
+            s.controller.state() != State::Referencing
+        });
+        assert!(found);
+        assert_eq!(send(&mut vc, "FRF?\nERR?\n"), "1=1\n0\n");
+        let slider_um = vc.sil.plant.slider_position_m() * 1e6;
+        let pos_um = number(&send(&mut vc, "POS?\n")) * 1e3;
+        assert!((slider_um - pos_um - 20.0).abs() < 0.3, "slider {slider_um} µm reads {pos_um} µm");
+        // It went down to the switch at −30 µm first.
+        assert!(lowest < -29e-6, "lowest {lowest}");
+    }
+
+    #[test]
+    fn frf_without_an_index_references_on_the_negative_limit() {
+        let p = Params::prototype();
+        let a = ServeArgs { index_um: 10.0, limit_mm: 0.03, ..args() };
+        let mut vc = VirtualController::new(&p, &a).unwrap();
+        vc.sil.index_position_m = None; // a scale without index; switches at −20 and +40 µm
+        let mut highest = f64::MIN;
+        assert_eq!(send(&mut vc, "FRF\nERR?\n"), "0\n");
+        assert!(vc.sil.run_until(3.0, |s| {
+            highest = highest.max(s.plant.slider_position_m());
+            s.controller.state() != State::Referencing
+        }));
+        assert_eq!(send(&mut vc, "FRF?\nERR?\n"), "1=1\n0\n");
+        // It went all the way to the positive switch looking for an index, then back.
+        assert!(highest >= 40e-6, "highest {highest}");
+        let slider_um = vc.sil.plant.slider_position_m() * 1e6;
+        let pos_um = number(&send(&mut vc, "POS?\n")) * 1e3;
+        // Zero (parameter 0x1017) where the negative switch closed, at −20 µm.
+        assert!((slider_um - pos_um - -20.0).abs() < 0.3, "slider {slider_um} µm reads {pos_um} µm");
+    }
+
+    #[test]
+    fn frf_on_the_negative_limit_switch() {
+        let p = Params::prototype();
+        let a = ServeArgs { index_um: 5.0, limit_mm: 0.03, ..args() };
+        let mut vc = VirtualController::new(&p, &a).unwrap();
+        // Reference on the switch (the stage has no index, say) and call it −1 mm.
+        assert_eq!(send(&mut vc, "SPA 1 0x1016 1 1 0x1017 -1\nERR?\nSVO 1 1\nFRF 1\nERR?\n"), "0\n0\n");
+        assert!(vc.sil.run_until(3.0, |s| s.controller.state() != State::Referencing));
+        // Servo was on: it holds where it found the switch.
+        assert_eq!(send(&mut vc, "FRF?\nSVO?\n"), "1=1\n1=1\n");
+        let pos_mm = number(&send(&mut vc, "POS?\n"));
+        assert!((pos_mm - -1.0).abs() < 0.5e-3, "{pos_mm}");
+        let slider_um = vc.sil.plant.slider_position_m() * 1e6;
+        assert!(slider_um <= 5.0 - 30.0 + 0.5, "switch at −25 µm, slider at {slider_um} µm");
+    }
+
+    #[test]
+    fn open_loop_stepping_moves_the_slider_and_stops() {
+        let p = Params::prototype();
+        let mut vc = VirtualController::new(&p, &args()).unwrap();
+        let x0 = vc.sil.plant.slider_position_m();
+        // 200 cycles at 1.5 kHz, 80 V, toward −x.
+        assert_eq!(send(&mut vc, "XOS 1 -200 80 1500\nERR?\n\x05"), "0\n1\n");
+        assert!(vc.sil.run_until(1.0, |s| s.controller.state() == State::Idle));
+        let moved_um = (vc.sil.plant.slider_position_m() - x0) * 1e6;
+        // 0.133 s at up to the no-load speed (~2 mm/s here): tens of µm, negative.
+        assert!(moved_um < -20.0 && moved_um > -400.0, "moved {moved_um} µm");
+        vc.sil.run_until(0.002, |_| false); // the amplitude slews out
+        assert_eq!(send(&mut vc, "\x05XDA?\n"), "0\n1=0.000\n");
+    }
+
+    #[test]
+    fn wpa_stores_spa_lines_that_load_back() {
+        let p = Params::prototype();
+        let path = std::env::temp_dir().join(format!("host-sim-wpa-{}.txt", std::process::id()));
+        let _ = std::fs::remove_file(&path);
+        let a = ServeArgs { store: Some(path.clone()), ..args() };
+        let mut vc = VirtualController::new(&p, &a).unwrap();
+        assert_eq!(send(&mut vc, "VEL 1 1.5\nSPA 1 0x15 20\nWPA 100\nERR?\n"), "0\n");
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains("SPA 1 0xA 1.5\n") && text.contains("SPA 1 0x15 20\n"), "{text}");
+        // A new virtual controller starts with them, as the board does from flash.
+        let mut again = VirtualController::new(&p, &a).unwrap();
+        assert_eq!(send(&mut again, "VEL?\nTMX?\nERR?\n"), "1=1.5\n1=20.000000\n0\n");
+        let _ = std::fs::remove_file(&path);
+    }
+
+    #[test]
+    fn a_client_that_leaves_mid_line_leaves_nothing_behind() {
+        let p = Params::prototype();
+        let port = {
+            let l = TcpListener::bind("127.0.0.1:0").unwrap();
+            l.local_addr().unwrap().port()
+        };
+        let a = ServeArgs { tcp: Some(format!("127.0.0.1:{port}")), duration_s: Some(4.0), ..args() };
+        let server = std::thread::spawn(move || run(&p, &a));
+        let connect = || {
+            for _ in 0..200 {
+                if let Ok(s) = TcpStream::connect(("127.0.0.1", port)) {
+                    return s;
+                }
+                std::thread::sleep(Duration::from_millis(10));
+            }
+            panic!("server did not come up");
+        };
+        {
+            let mut c = connect();
+            c.write_all(b"MOV 1").unwrap();
+            std::thread::sleep(Duration::from_millis(50));
+        } // gone mid-line
+        let mut c = connect();
+        c.set_read_timeout(Some(Duration::from_secs(2))).unwrap();
+        c.write_all(b"CSV?\nERR?\n").unwrap();
+        let mut got = Vec::new();
+        let mut buf = [0u8; 64];
+        while got.len() < 6 {
+            let n = c.read(&mut buf).unwrap();
+            assert!(n > 0);
+            got.extend_from_slice(&buf[..n]);
+        }
+        assert_eq!(got, b"2.0\n0\n");
+        drop(c);
+        server.join().unwrap().unwrap();
+    }
+}

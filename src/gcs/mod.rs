@@ -1,0 +1,791 @@
+//! PI GCS 2.0 subset over a byte stream (UART on the board, TCP or a pty in `host-sim serve`):
+//! a line collector ([`Gcs::push_byte`]) and an executor ([`Gcs::execute`]) that never panic and
+//! never allocate.
+//!
+//! Framing: one command per LF-terminated line, arguments separated by spaces, axis `1`.
+//! Replies are `[args=]value` + LF; a multi-line reply ends every line but the last with space +
+//! LF; no CR is ever sent. The single bytes 0x05 (`#5`), 0x07 (`#7`) and 0x18 (`#24`) are
+//! commands of their own, without LF. A failing command replies nothing and latches a GCS error
+//! number that `ERR?` returns and clears; a line with any invalid part executes nothing.
+
+pub mod num;
+pub mod params;
+
+use crate::controller::{CommandError, Controller, ControllerConfig};
+use num::{
+    parse_decimal, parse_int, write_fixed, write_general, write_i64, write_scaled, write_u64, Decimal,
+};
+
+pub const REPLY_CAPACITY: usize = 4096;
+pub type Reply = heapless::Vec<u8, REPLY_CAPACITY>;
+/// Longest command line (without its LF); longer lines are discarded and latch error 3.
+pub const LINE_CAPACITY: usize = 256;
+/// Most space-separated tokens on one line.
+pub const MAX_TOKENS: usize = 32;
+
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LoopStats {
+    pub step_cycles_last: u32,
+    pub step_cycles_max: u32,
+    pub overruns: u32,
+    pub core_clock_hz: u32,
+}
+
+/// What the protocol needs from the board besides the controller.
+pub trait Board {
+    /// `WPA`: store the parameters in non-volatile memory; false when it failed.
+    fn store_parameters(&mut self, cfg: &ControllerConfig) -> bool;
+    /// Serial number for `*IDN?`.
+    fn serial_number(&self) -> u32;
+    /// Control-loop timing for a diagnostics query (our extension).
+    fn loop_stats(&self) -> LoopStats;
+}
+
+/// GCS error numbers used here.
+pub mod error {
+    pub const NONE: i32 = 0;
+    pub const PARAM_SYNTAX: i32 = 1;
+    pub const UNKNOWN_COMMAND: i32 = 2;
+    pub const COMMAND_TOO_LONG: i32 = 3;
+    pub const MOVE_WITHOUT_REF_OR_SERVO_OFF: i32 = 5;
+    pub const POS_OUT_OF_LIMITS: i32 = 7;
+    pub const VEL_OUT_OF_LIMITS: i32 = 8;
+    pub const STOPPED: i32 = 10;
+    pub const INVALID_AXIS: i32 = 15;
+    pub const PARAM_OUT_OF_RANGE: i32 = 17;
+    pub const WRONG_PARAM_COUNT: i32 = 24;
+    pub const MISSING_PARAM: i32 = 26;
+    pub const NOT_ALLOWED: i32 = 34;
+    pub const REFERENCING_FAILED: i32 = 45;
+    pub const REF_WITH_REF_DISABLED: i32 = 50;
+    pub const UNKNOWN_PARAMETER: i32 = 54;
+    pub const INVALID_PASSWORD: i32 = 56;
+    pub const READ_ONLY_PARAMETER: i32 = 64;
+    pub const OPEN_LOOP_WITH_SERVO_ON: i32 = 303;
+    pub const SENSOR_SIGNAL_INVALID: i32 = 505;
+    pub const CONTROLLER_BUSY: i32 = 1005;
+    pub const MOTION_ERROR: i32 = 1024;
+    pub const FLASH_PROGRAM_FAILED: i32 = 4001;
+}
+
+type Line = heapless::Vec<u8, LINE_CAPACITY>;
+
+/// A complete command, ready for [`Gcs::execute`].
+// No allocation: the line travels by value (264 bytes), which is what the firmware queues.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Pending {
+    /// A command line without its LF.
+    Line(Line),
+    /// A line longer than [`LINE_CAPACITY`], discarded up to its LF.
+    TooLong,
+    /// A single-byte command (0x05, 0x07, 0x18) or another control byte.
+    Byte(u8),
+}
+
+/// The commands, as `HLP?` lists them: name, arguments, description.
+pub static COMMANDS: &[(&str, &str, &str)] = &[
+    ("#5", "", "Request Motion Status"),
+    ("#7", "", "Request Controller Ready Status"),
+    ("#24", "", "Stop All Axes"),
+    ("*IDN?", "", "Get Device Identification"),
+    ("ACC", "{<AxisID> <Acceleration>}", "Set Closed-Loop Acceleration"),
+    ("ACC?", "[{<AxisID>}]", "Get Closed-Loop Acceleration"),
+    ("CST?", "[{<AxisID>}]", "Get Assignment Of Stages To Axes"),
+    ("CSV?", "", "Get Current Syntax Version"),
+    ("DEC", "{<AxisID> <Deceleration>}", "Set Closed-Loop Deceleration"),
+    ("DEC?", "[{<AxisID>}]", "Get Closed-Loop Deceleration"),
+    ("ERR?", "", "Get Error Number"),
+    ("FRF", "[{<AxisID>}]", "Fast Reference Move To Reference Mark"),
+    ("FRF?", "[{<AxisID>}]", "Get Referencing Result"),
+    ("HLP?", "", "Get List Of Available Commands"),
+    ("HLT", "[{<AxisID>}]", "Halt Motion Smoothly"),
+    ("HPA?", "", "Get List Of Available Parameters"),
+    ("MOV", "{<AxisID> <Position>}", "Set Target Position"),
+    ("MOV?", "[{<AxisID>}]", "Get Target Position"),
+    ("MVR", "{<AxisID> <Distance>}", "Set Target Relative To Current Target"),
+    ("ONT?", "[{<AxisID>}]", "Get On Target State"),
+    ("POS", "{<AxisID> <Position>}", "Set Real Position (Reference Mode Off)"),
+    ("POS?", "[{<AxisID>}]", "Get Real Position"),
+    ("RON", "{<AxisID> <ReferenceOn>}", "Set Reference Mode"),
+    ("RON?", "[{<AxisID>}]", "Get Reference Mode"),
+    ("SAI?", "[ALL]", "Get List Of Current Axis Identifiers"),
+    ("SPA", "{<ItemID> <PamID> <PamValue>}", "Set Volatile Memory Parameters"),
+    ("SPA?", "[{<ItemID> <PamID>}]", "Get Volatile Memory Parameters"),
+    ("STP", "", "Stop All Axes"),
+    ("SVO", "{<AxisID> <ServoState>}", "Set Servo Mode"),
+    ("SVO?", "[{<AxisID>}]", "Get Servo Mode"),
+    ("TMN?", "[{<AxisID>}]", "Get Minimum Commandable Position"),
+    ("TMX?", "[{<AxisID>}]", "Get Maximum Commandable Position"),
+    ("VEL", "{<AxisID> <Velocity>}", "Set Closed-Loop Velocity"),
+    ("VEL?", "[{<AxisID>}]", "Get Closed-Loop Velocity"),
+    ("WPA", "[<Password>]", "Save Parameters To Non-Volatile Memory"),
+    ("XDA?", "[{<AxisID>}]", "Get Drive Amplitude In V Peak-To-Peak (extension)"),
+    ("XDF?", "[{<AxisID>}]", "Get Drive Frequency In Hz (extension)"),
+    ("XFT?", "[{<AxisID>}]", "Get Fault Code And Text (extension)"),
+    ("XLT?", "", "Get Control-Loop Timing (extension)"),
+    ("XOS", "<AxisID> <Cycles> <Amplitude> <Frequency>", "Open-Loop Stepping With Servo Off (extension)"),
+    ("XPF?", "[{<AxisID>}]", "Get Preload Force In N (extension)"),
+    ("XTM?", "[{<AxisID>}]", "Get Stall Force In N And No-Load Speed In mm/s At Present Preload (extension)"),
+];
+
+/// `*IDN?` fields: maker, model, (serial), version (three dot-separated parts at most).
+pub const IDN_MAKER: &str = "(c)2026 piezo-drive project";
+pub const IDN_MODEL: &str = "PD-SB1";
+pub const IDN_VERSION: &str = env!("CARGO_PKG_VERSION");
+/// `CST?`: what the axis is.
+pub const STAGE_NAME: &str = "SHAKING-BEAM-PIEZO";
+
+type GcsResult = Result<(), i32>;
+
+/// Reply under construction: lines separated by space + LF, closed by LF; tracks overflow.
+struct Out<'a> {
+    buf: &'a mut Reply,
+    lines: u32,
+    ok: bool,
+}
+
+impl num::Sink for Out<'_> {
+    fn put(&mut self, bytes: &[u8]) -> bool {
+        self.ok &= self.buf.extend_from_slice(bytes).is_ok();
+        self.ok
+    }
+}
+
+impl Out<'_> {
+    fn line(&mut self) {
+        if self.lines > 0 {
+            self.s(" \n");
+        }
+        self.lines = self.lines.saturating_add(1);
+    }
+    fn s(&mut self, text: &str) {
+        num::Sink::put(self, text.as_bytes());
+    }
+    fn b(&mut self, bytes: &[u8]) {
+        num::Sink::put(self, bytes);
+    }
+    fn u(&mut self, v: u64) {
+        write_u64(self, v);
+    }
+    fn i(&mut self, v: i64) {
+        write_i64(self, v);
+    }
+    /// Nanometres as millimetres with six decimals (`1=2.500000`).
+    fn mm(&mut self, nm: i64) {
+        write_scaled(self, nm, 6);
+    }
+    fn fixed(&mut self, v: f64, decimals: u32) {
+        write_fixed(self, v, decimals);
+    }
+    fn general(&mut self, v: f64) {
+        write_general(self, v);
+    }
+    fn finish(&mut self) {
+        if self.lines > 0 {
+            self.s("\n");
+        }
+    }
+}
+
+/// Protocol state: the line being received, the latched error, the reference mode.
+pub struct Gcs {
+    line: Line,
+    overflow: bool,
+    error: i32,
+    reference_mode: bool,
+    seen_faults: u32,
+    seen_reference_failures: u32,
+}
+
+impl Default for Gcs {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+fn is_space(b: u8) -> bool {
+    b == b' ' || b == b'\t' || b == b'\r'
+}
+
+fn command_error(e: CommandError) -> i32 {
+    match e {
+        CommandError::Faulted(_) => error::MOTION_ERROR,
+        CommandError::ServoOff => error::MOVE_WITHOUT_REF_OR_SERVO_OFF,
+        CommandError::OutOfTravel => error::POS_OUT_OF_LIMITS,
+        CommandError::PreloadInvalid => error::SENSOR_SIGNAL_INVALID,
+        CommandError::PreloadOutOfWindow => error::MOTION_ERROR,
+        CommandError::InvalidValue => error::PARAM_OUT_OF_RANGE,
+        CommandError::ServoOn => error::OPEN_LOOP_WITH_SERVO_ON,
+        CommandError::Busy => error::CONTROLLER_BUSY,
+    }
+}
+
+fn axis(t: &[u8]) -> GcsResult {
+    if t == b"1" {
+        Ok(())
+    } else {
+        Err(error::INVALID_AXIS)
+    }
+}
+
+fn number(t: &[u8]) -> Result<Decimal, i32> {
+    parse_decimal(t).ok_or(error::PARAM_SYNTAX)
+}
+
+/// Axes of a query: none means all (axis 1 once); each given axis is answered in turn.
+fn query_axes(args: &[&[u8]]) -> Result<usize, i32> {
+    for a in args {
+        axis(a)?;
+    }
+    Ok(args.len().max(1))
+}
+
+/// `{<AxisID> <Value>}` pairs: all checked, the last value is the one that counts (one axis).
+fn last_pair<'a>(args: &[&'a [u8]]) -> Result<&'a [u8], i32> {
+    if args.is_empty() {
+        return Err(error::MISSING_PARAM);
+    }
+    if args.len() % 2 != 0 {
+        return Err(error::WRONG_PARAM_COUNT);
+    }
+    let mut last: &[u8] = &[];
+    for pair in args.chunks(2) {
+        if let [a, v] = pair {
+            axis(a)?;
+            number(v)?;
+            last = v;
+        }
+    }
+    Ok(last)
+}
+
+fn no_args(args: &[&[u8]]) -> GcsResult {
+    if args.is_empty() {
+        Ok(())
+    } else {
+        Err(error::WRONG_PARAM_COUNT)
+    }
+}
+
+/// A boolean argument: exactly `0` or `1`.
+fn flag(t: &[u8]) -> Result<bool, i32> {
+    match parse_decimal(t).ok_or(error::PARAM_SYNTAX)?.integer() {
+        Some(0) => Ok(false),
+        Some(1) => Ok(true),
+        _ => Err(error::PARAM_OUT_OF_RANGE),
+    }
+}
+
+fn to_f32(d: &Decimal) -> Option<f32> {
+    let v = d.to_f64()? as f32;
+    v.is_finite().then_some(v)
+}
+
+impl Gcs {
+    pub fn new() -> Self {
+        Gcs {
+            line: Line::new(),
+            overflow: false,
+            error: error::NONE,
+            reference_mode: true,
+            seen_faults: 0,
+            seen_reference_failures: 0,
+        }
+    }
+
+    /// Cheap: collect one received byte. Some(..) once a complete command (a line, or a
+    /// single-byte command) is ready.
+    pub fn push_byte(&mut self, byte: u8) -> Option<Pending> {
+        match byte {
+            b'\n' => {
+                let pending = if self.overflow {
+                    Pending::TooLong
+                } else {
+                    Pending::Line(core::mem::take(&mut self.line))
+                };
+                self.line.clear();
+                self.overflow = false;
+                Some(pending)
+            }
+            // Control bytes other than tab and CR are commands of their own (#5, #7, #24; any
+            // other is an unknown command), wherever they arrive.
+            0x00..=0x08 | 0x0b | 0x0c | 0x0e..=0x1f => Some(Pending::Byte(byte)),
+            _ => {
+                if self.line.push(byte).is_err() {
+                    self.overflow = true;
+                }
+                None
+            }
+        }
+    }
+
+    /// Forgets a partly received line (e.g. when a client disconnects mid-line).
+    pub fn discard_partial_line(&mut self) {
+        self.line.clear();
+        self.overflow = false;
+    }
+
+    /// The latched error (without clearing it).
+    pub fn latched_error(&self) -> i32 {
+        self.error
+    }
+
+    /// Execute it against the controller and append the reply bytes (possibly none).
+    pub fn execute(
+        &mut self,
+        pending: &Pending,
+        ctl: &mut Controller,
+        board: &mut dyn Board,
+        reply: &mut Reply,
+    ) {
+        // Errors the controller ran into on its own since the last command.
+        if ctl.fault_count() != self.seen_faults {
+            self.seen_faults = ctl.fault_count();
+            self.error = error::MOTION_ERROR;
+        }
+        if ctl.reference_failure_count() != self.seen_reference_failures {
+            self.seen_reference_failures = ctl.reference_failure_count();
+            self.error = error::REFERENCING_FAILED;
+        }
+        let start = reply.len();
+        let mut out = Out { buf: reply, lines: 0, ok: true };
+        let result = match pending {
+            Pending::Byte(b) => self.byte_command(*b, ctl, &mut out),
+            Pending::TooLong => Err(error::COMMAND_TOO_LONG),
+            Pending::Line(line) => self.line_command(line, ctl, board, &mut out),
+        };
+        out.finish();
+        let result = if out.ok { result } else { Err(error::COMMAND_TOO_LONG) };
+        if let Err(code) = result {
+            reply.truncate(start);
+            self.error = code;
+        }
+    }
+
+    fn byte_command(&mut self, b: u8, ctl: &mut Controller, out: &mut Out) -> GcsResult {
+        match b {
+            0x05 => {
+                out.line();
+                out.u(u64::from(ctl.in_motion()));
+            }
+            0x07 => {
+                out.line();
+                out.b(&[if ctl.referencing() { 0xB0 } else { 0xB1 }]);
+            }
+            0x18 => {
+                ctl.stop();
+                return Err(error::STOPPED);
+            }
+            _ => return Err(error::UNKNOWN_COMMAND),
+        }
+        Ok(())
+    }
+
+    fn line_command(
+        &mut self,
+        line: &[u8],
+        ctl: &mut Controller,
+        board: &mut dyn Board,
+        out: &mut Out,
+    ) -> GcsResult {
+        let mut tokens: heapless::Vec<&[u8], MAX_TOKENS> = heapless::Vec::new();
+        for t in line.split(|&b| is_space(b)).filter(|t| !t.is_empty()) {
+            tokens.push(t).map_err(|_| error::WRONG_PARAM_COUNT)?;
+        }
+        let Some((cmd, args)) = tokens.split_first() else {
+            return Ok(()); // empty line
+        };
+        let name = COMMANDS
+            .iter()
+            .map(|c| c.0)
+            .find(|n| n.as_bytes().eq_ignore_ascii_case(cmd) && !n.starts_with('#'))
+            .ok_or(error::UNKNOWN_COMMAND)?;
+        self.run(name, args, ctl, board, out)
+    }
+
+    fn run(
+        &mut self,
+        name: &str,
+        args: &[&[u8]],
+        ctl: &mut Controller,
+        board: &mut dyn Board,
+        out: &mut Out,
+    ) -> GcsResult {
+        match name {
+            "*IDN?" => {
+                no_args(args)?;
+                out.line();
+                out.s(IDN_MAKER);
+                out.s(", ");
+                out.s(IDN_MODEL);
+                out.s(", ");
+                // Six digits at least, as PI prints serial numbers.
+                let serial = board.serial_number();
+                let mut p = 100_000u32;
+                while p > 1 && serial < p {
+                    out.s("0");
+                    p /= 10;
+                }
+                out.u(u64::from(serial));
+                out.s(", ");
+                out.s(IDN_VERSION);
+            }
+            "CSV?" => {
+                no_args(args)?;
+                out.line();
+                out.s("2.0");
+            }
+            "ERR?" => {
+                no_args(args)?;
+                out.line();
+                out.i(i64::from(self.error));
+                self.error = error::NONE;
+            }
+            "HLP?" => {
+                no_args(args)?;
+                out.line();
+                out.s("The following commands are valid:");
+                for (cmd, syntax, text) in COMMANDS {
+                    out.line();
+                    out.s(cmd);
+                    if !syntax.is_empty() {
+                        out.s(" ");
+                        out.s(syntax);
+                    }
+                    out.s(" ");
+                    out.s(text);
+                }
+                out.line();
+                out.s("end of help");
+            }
+            "HPA?" => {
+                no_args(args)?;
+                out.line();
+                out.s("#Possible parameters of this device:");
+                for p in params::PARAMS {
+                    out.line();
+                    out.s("0x");
+                    hex(out, p.id);
+                    out.s("=\t0\t1\t");
+                    out.s(p.kind.name());
+                    out.s("\t");
+                    out.s(p.group);
+                    out.s("\t");
+                    out.s(p.description);
+                }
+                out.line();
+                out.s("end of help");
+            }
+            "SAI?" => {
+                match args {
+                    [] => {}
+                    [all] if all.eq_ignore_ascii_case(b"ALL") => {}
+                    [_] => return Err(error::PARAM_SYNTAX),
+                    _ => return Err(error::WRONG_PARAM_COUNT),
+                }
+                out.line();
+                out.s("1");
+            }
+            "CST?" => self.axis_query(args, out, |out| out.s(STAGE_NAME))?,
+            "SVO?" => self.axis_query(args, out, |out| out.u(u64::from(ctl.servo())))?,
+            "RON?" => {
+                let ron = self.reference_mode;
+                self.axis_query(args, out, |out| out.u(u64::from(ron)))?
+            }
+            "FRF?" => self.axis_query(args, out, |out| out.u(u64::from(ctl.referenced())))?,
+            "ONT?" => self.axis_query(args, out, |out| out.u(u64::from(ctl.on_target())))?,
+            "POS?" => self.axis_query(args, out, |out| out.mm(ctl.position_nm()))?,
+            "MOV?" => self.axis_query(args, out, |out| out.mm(ctl.target_nm()))?,
+            "TMN?" => self.axis_query(args, out, |out| out.mm(ctl.config().travel_min_nm))?,
+            "TMX?" => self.axis_query(args, out, |out| out.mm(ctl.config().travel_max_nm))?,
+            "VEL?" => {
+                let v = f64::from(ctl.config().velocity_max_nm_s / 1e6);
+                self.axis_query(args, out, |out| out.general(v))?
+            }
+            "ACC?" => {
+                let v = f64::from(ctl.config().accel_max_nm_s2 / 1e6);
+                self.axis_query(args, out, |out| out.general(v))?
+            }
+            "DEC?" => {
+                let v = f64::from(ctl.config().decel_max_nm_s2 / 1e6);
+                self.axis_query(args, out, |out| out.general(v))?
+            }
+            "XPF?" => {
+                let f = ctl.preload_n().ok_or(error::SENSOR_SIGNAL_INVALID)?;
+                self.axis_query(args, out, |out| out.fixed(f64::from(f), 3))?
+            }
+            "XDA?" => {
+                let v = f64::from(ctl.drive_voltage_v());
+                self.axis_query(args, out, |out| out.fixed(v, 3))?
+            }
+            "XDF?" => {
+                let f = f64::from(ctl.drive_frequency_hz());
+                self.axis_query(args, out, |out| out.fixed(f, 1))?
+            }
+            "XFT?" => {
+                let fault = ctl.fault();
+                self.axis_query(args, out, |out| match fault {
+                    Some(code) => {
+                        out.u(code as u64);
+                        out.s(" ");
+                        out.s(code.text());
+                    }
+                    None => out.s("0 no fault"),
+                })?
+            }
+            "XTM?" => {
+                let (stall, speed) = ctl.thrust_limits().ok_or(error::SENSOR_SIGNAL_INVALID)?;
+                self.axis_query(args, out, |out| {
+                    out.fixed(f64::from(stall), 3);
+                    out.s(" ");
+                    out.fixed(f64::from(speed), 3);
+                })?
+            }
+            "XLT?" => {
+                no_args(args)?;
+                let s = board.loop_stats();
+                for (key, v) in [
+                    ("step_cycles_last", s.step_cycles_last),
+                    ("step_cycles_max", s.step_cycles_max),
+                    ("overruns", s.overruns),
+                    ("core_clock_hz", s.core_clock_hz),
+                ] {
+                    out.line();
+                    out.s(key);
+                    out.s("=");
+                    out.u(u64::from(v));
+                }
+            }
+            "SVO" => {
+                let on = flag(last_pair(args)?)?;
+                if ctl.referencing() {
+                    return Err(error::CONTROLLER_BUSY);
+                }
+                if ctl.fault().is_none() && ctl.servo() == on {
+                    // Already so: nothing to do (servo on again must not re-anchor a moving
+                    // slider's reference where it stands).
+                    return Ok(());
+                }
+                if ctl.fault().is_some() {
+                    // As on PI controllers after a motion error: switching the servo (on or off)
+                    // again is the recovery. Check what servo-on needs before clearing.
+                    if on {
+                        self.check_preload(ctl)?;
+                    }
+                    ctl.clear_fault();
+                }
+                ctl.set_servo(on).map_err(command_error)?;
+            }
+            "RON" => {
+                self.reference_mode = flag(last_pair(args)?)?;
+            }
+            "FRF" => {
+                for a in args {
+                    axis(a)?;
+                }
+                if !self.reference_mode {
+                    return Err(error::REF_WITH_REF_DISABLED);
+                }
+                ctl.start_referencing().map_err(command_error)?;
+            }
+            "POS" => {
+                let v = number(last_pair(args)?)?;
+                let nm = v.scaled_i64(6).ok_or(error::PARAM_OUT_OF_RANGE)?;
+                if self.reference_mode {
+                    return Err(error::NOT_ALLOWED);
+                }
+                if ctl.in_motion() {
+                    return Err(error::CONTROLLER_BUSY);
+                }
+                ctl.set_reference_here(nm);
+            }
+            "MOV" => {
+                let v = number(last_pair(args)?)?;
+                let target = v.scaled_i64(6).ok_or(error::POS_OUT_OF_LIMITS)?;
+                self.move_to(ctl, target)?;
+            }
+            "MVR" => {
+                let v = number(last_pair(args)?)?;
+                let delta = v.scaled_i64(6).ok_or(error::POS_OUT_OF_LIMITS)?;
+                let target = ctl.target_nm().checked_add(delta).ok_or(error::POS_OUT_OF_LIMITS)?;
+                self.move_to(ctl, target)?;
+            }
+            "VEL" | "ACC" | "DEC" => {
+                let v = number(last_pair(args)?)?;
+                let x = to_f32(&v).map(|x| x * 1e6).filter(|x| x.is_finite() && *x > 0.0);
+                let bad = if name == "VEL" { error::VEL_OUT_OF_LIMITS } else { error::PARAM_OUT_OF_RANGE };
+                let x = x.ok_or(bad)?;
+                let mut cfg = *ctl.config();
+                match name {
+                    "VEL" => cfg.velocity_max_nm_s = x,
+                    "ACC" => cfg.accel_max_nm_s2 = x,
+                    _ => cfg.decel_max_nm_s2 = x,
+                }
+                ctl.set_config(cfg).map_err(|_| bad)?;
+            }
+            "STP" => {
+                no_args(args)?;
+                ctl.stop();
+                return Err(error::STOPPED);
+            }
+            "HLT" => {
+                for a in args {
+                    axis(a)?;
+                }
+                ctl.halt();
+                return Err(error::STOPPED);
+            }
+            "SPA" => self.spa(args, ctl)?,
+            "SPA?" => self.spa_query(args, ctl, out)?,
+            "WPA" => {
+                match args {
+                    [] => {}
+                    [pw] if *pw == b"100" => {}
+                    [_] => return Err(error::INVALID_PASSWORD),
+                    _ => return Err(error::WRONG_PARAM_COUNT),
+                }
+                if !board.store_parameters(ctl.config()) {
+                    return Err(error::FLASH_PROGRAM_FAILED);
+                }
+            }
+            "XOS" => {
+                let [a, cycles, amplitude, frequency] = args else {
+                    return Err(if args.is_empty() {
+                        error::MISSING_PARAM
+                    } else {
+                        error::WRONG_PARAM_COUNT
+                    });
+                };
+                axis(a)?;
+                let cycles = parse_int(cycles).ok_or(error::PARAM_SYNTAX)?;
+                let amplitude = number(amplitude)?;
+                let frequency = number(frequency)?;
+                let cycles = i32::try_from(cycles)
+                    .ok()
+                    .filter(|c| *c != 0 && c.unsigned_abs() <= 1_000_000)
+                    .ok_or(error::PARAM_OUT_OF_RANGE)?;
+                let amplitude = to_f32(&amplitude).ok_or(error::PARAM_OUT_OF_RANGE)?;
+                let frequency = to_f32(&frequency).ok_or(error::PARAM_OUT_OF_RANGE)?;
+                ctl.open_loop_step(cycles, amplitude, frequency).map_err(command_error)?;
+            }
+            _ => return Err(error::UNKNOWN_COMMAND),
+        }
+        Ok(())
+    }
+
+    /// `XYZ? [{<AxisID>}]`: one `1=value` line per requested axis.
+    fn axis_query(&self, args: &[&[u8]], out: &mut Out, mut value: impl FnMut(&mut Out)) -> GcsResult {
+        let n = query_axes(args)?;
+        for _ in 0..n {
+            out.line();
+            out.s("1=");
+            value(out);
+        }
+        Ok(())
+    }
+
+    fn check_preload(&self, ctl: &Controller) -> GcsResult {
+        let f = ctl.preload_n().ok_or(error::SENSOR_SIGNAL_INVALID)?;
+        let c = ctl.config();
+        if f < c.preload_min_n || f > c.preload_max_n {
+            return Err(error::MOTION_ERROR);
+        }
+        Ok(())
+    }
+
+    fn move_to(&mut self, ctl: &mut Controller, target_nm: i64) -> GcsResult {
+        if ctl.referencing() {
+            return Err(error::CONTROLLER_BUSY);
+        }
+        if !ctl.servo() || (self.reference_mode && !ctl.referenced()) {
+            return Err(error::MOVE_WITHOUT_REF_OR_SERVO_OFF);
+        }
+        let c = ctl.config();
+        if target_nm < c.travel_min_nm || target_nm > c.travel_max_nm {
+            return Err(error::POS_OUT_OF_LIMITS);
+        }
+        ctl.move_to(target_nm).map_err(command_error)
+    }
+
+    fn spa(&mut self, args: &[&[u8]], ctl: &mut Controller) -> GcsResult {
+        if args.is_empty() {
+            return Err(error::MISSING_PARAM);
+        }
+        if args.len() % 3 != 0 {
+            return Err(error::WRONG_PARAM_COUNT);
+        }
+        let mut cfg = *ctl.config();
+        for triple in args.chunks(3) {
+            let [item, id, value] = triple else { return Err(error::WRONG_PARAM_COUNT) };
+            axis(item)?;
+            let p =
+                params::find(parse_int(id).ok_or(error::PARAM_SYNTAX)?).ok_or(error::UNKNOWN_PARAMETER)?;
+            let v = number(value)?;
+            if p.read_only {
+                return Err(error::READ_ONLY_PARAMETER);
+            }
+            let x = match p.kind {
+                params::Kind::Int => v.integer().ok_or(error::PARAM_OUT_OF_RANGE)? as f64,
+                params::Kind::Float => v.to_f64().ok_or(error::PARAM_OUT_OF_RANGE)?,
+            };
+            if !(p.set)(&mut cfg, x) {
+                return Err(error::PARAM_OUT_OF_RANGE);
+            }
+        }
+        ctl.set_config(cfg).map_err(|_| error::PARAM_OUT_OF_RANGE)
+    }
+
+    fn spa_query(&self, args: &[&[u8]], ctl: &Controller, out: &mut Out) -> GcsResult {
+        let cfg = ctl.config();
+        if args.is_empty() {
+            for p in params::PARAMS {
+                param_line(out, p, cfg);
+            }
+            return Ok(());
+        }
+        if args.len() % 2 != 0 {
+            return Err(error::WRONG_PARAM_COUNT);
+        }
+        // Check everything before answering anything.
+        for pair in args.chunks(2) {
+            let [item, id] = pair else { return Err(error::WRONG_PARAM_COUNT) };
+            axis(item)?;
+            params::find(parse_int(id).ok_or(error::PARAM_SYNTAX)?).ok_or(error::UNKNOWN_PARAMETER)?;
+        }
+        for pair in args.chunks(2) {
+            if let [_, id] = pair {
+                if let Some(p) = parse_int(id).and_then(params::find) {
+                    param_line(out, p, cfg);
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn hex(out: &mut Out, v: u32) {
+    let digits = b"0123456789ABCDEF";
+    let mut started = false;
+    for shift in (0..8).rev() {
+        let d = ((v >> (shift * 4)) & 0xF) as usize;
+        if d != 0 || started || shift == 0 {
+            started = true;
+            if let Some(c) = digits.get(d) {
+                out.b(&[*c]);
+            }
+        }
+    }
+}
+
+fn param_line(out: &mut Out, p: &params::Param, cfg: &ControllerConfig) {
+    out.line();
+    out.s("1 0x");
+    hex(out, p.id);
+    out.s("=");
+    let v = (p.get)(cfg);
+    match p.kind {
+        params::Kind::Int => out.fixed(v, 0),
+        params::Kind::Float => out.general(v),
+    }
+}

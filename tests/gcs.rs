@@ -1,0 +1,619 @@
+//! Golden transcripts of the GCS 2.0 subset: exact bytes in, exact bytes out, decided from the
+//! GCS rules (framing, error latching, one-bad-part-executes-nothing) and the PIPython facts in
+//! shared/gcs-notes.md — written by hand, not captured from the implementation.
+
+use piezo_drive::controller::{Controller, Inputs, State};
+use piezo_drive::defaults;
+use piezo_drive::gcs::{params::PARAMS, Board, Gcs, LoopStats, Pending, Reply, LINE_CAPACITY};
+
+/// 16 N on the default 12-bit, 50 N force cell: word 1310 reads 1310·50/4095 = 15.995 N.
+const PRELOAD_WORD: u16 = 1310;
+
+#[derive(Default)]
+struct TestBoard {
+    stored: Option<piezo_drive::controller::ControllerConfig>,
+    fail_store: bool,
+}
+
+impl Board for TestBoard {
+    fn store_parameters(&mut self, cfg: &piezo_drive::controller::ControllerConfig) -> bool {
+        if self.fail_store {
+            return false;
+        }
+        self.stored = Some(*cfg);
+        true
+    }
+    fn serial_number(&self) -> u32 {
+        42
+    }
+    fn loop_stats(&self) -> LoopStats {
+        LoopStats { step_cycles_last: 12, step_cycles_max: 34, overruns: 0, core_clock_hz: 170_000_000 }
+    }
+}
+
+struct Rig {
+    gcs: Gcs,
+    ctl: Controller,
+    board: TestBoard,
+    encoder: u16,
+}
+
+impl Rig {
+    fn new() -> Self {
+        let mut rig = Rig {
+            gcs: Gcs::new(),
+            ctl: Controller::new(defaults::controller_config()).unwrap(),
+            board: TestBoard::default(),
+            encoder: 0,
+        };
+        rig.steps(10, Inputs::default());
+        rig
+    }
+
+    fn steps(&mut self, n: usize, extra: Inputs) {
+        for _ in 0..n {
+            self.ctl.step(&Inputs { encoder_raw: self.encoder, preload_word: PRELOAD_WORD, ..extra });
+        }
+    }
+
+    /// Sends bytes; returns everything replied.
+    fn send(&mut self, bytes: &[u8]) -> Vec<u8> {
+        let mut all = Vec::new();
+        for &b in bytes {
+            if let Some(p) = self.gcs.push_byte(b) {
+                let mut reply = Reply::new();
+                self.gcs.execute(&p, &mut self.ctl, &mut self.board, &mut reply);
+                all.extend_from_slice(&reply);
+            }
+        }
+        all
+    }
+
+    /// Runs a transcript: each `(sent, expected reply)` in turn.
+    fn transcript(&mut self, pairs: &[(&[u8], &[u8])]) {
+        for (i, (sent, expected)) in pairs.iter().enumerate() {
+            let got = self.send(sent);
+            assert_eq!(
+                String::from_utf8_lossy(&got),
+                String::from_utf8_lossy(expected),
+                "exchange {i}: sent {:?}",
+                String::from_utf8_lossy(sent)
+            );
+            assert_eq!(&got, expected, "exchange {i} (raw bytes)");
+        }
+    }
+
+    /// Servo on and referenced at 0 through the protocol (index seen right away).
+    fn ready(&mut self) {
+        self.transcript(&[(b"FRF 1\n", b""), (b"ERR?\n", b"0\n")]);
+        self.steps(1, Inputs { index: true, ..Default::default() });
+        self.transcript(&[(b"SVO 1 1\n", b""), (b"ERR?\n", b"0\n"), (b"FRF? 1\n", b"1=1\n")]);
+    }
+}
+
+#[test]
+fn identification_and_syntax_version() {
+    Rig::new().transcript(&[
+        (b"*IDN?\n", b"(c)2026 piezo-drive project, PD-SB1, 000042, 0.1.0\n"),
+        (b"CSV?\n", b"2.0\n"),
+        (b"SAI?\n", b"1\n"),
+        (b"SAI? ALL\n", b"1\n"),
+        (b"CST?\n", b"1=SHAKING-BEAM-PIEZO\n"),
+        (b"CST? 1\n", b"1=SHAKING-BEAM-PIEZO\n"),
+        (b"ERR?\n", b"0\n"),
+    ]);
+}
+
+#[test]
+fn idn_has_four_fields_and_a_version_of_at_most_three_parts() {
+    let reply = Rig::new().send(b"*IDN?\n");
+    let text = String::from_utf8(reply).unwrap();
+    let fields: Vec<&str> = text.trim_end_matches('\n').split(", ").collect();
+    assert_eq!(fields.len(), 4, "{text:?}");
+    assert!(fields[3].split('.').count() <= 3, "{text:?}");
+}
+
+#[test]
+fn errors_are_latched_not_replied_and_err_clears_them() {
+    Rig::new().transcript(&[
+        (b"ERR?\n", b"0\n"),
+        (b"XYZ\n", b""),
+        (b"ERR?\n", b"2\n"),
+        (b"ERR?\n", b"0\n"),
+        // The last error counts.
+        (b"XYZ\n", b""),
+        (b"POS? 2\n", b""),
+        (b"ERR?\n", b"15\n"),
+        // A successful command leaves the latched error alone.
+        (b"MOV 1 1\n", b""),
+        (b"CSV?\n", b"2.0\n"),
+        (b"ERR?\n", b"5\n"),
+        (b"ERR?\n", b"0\n"),
+    ]);
+}
+
+#[test]
+fn argument_errors_have_their_gcs_numbers() {
+    let mut rig = Rig::new();
+    rig.ready();
+    rig.transcript(&[
+        (b"MOV\n", b""),
+        (b"ERR?\n", b"26\n"),
+        (b"MOV 1\n", b""),
+        (b"ERR?\n", b"24\n"),
+        (b"MOV 1 abc\n", b""),
+        (b"ERR?\n", b"1\n"),
+        (b"MOV 1 nan\n", b""),
+        (b"ERR?\n", b"1\n"),
+        (b"MOV 1 inf\n", b""),
+        (b"ERR?\n", b"1\n"),
+        (b"MOV 1 1e400\n", b""),
+        (b"ERR?\n", b"7\n"),
+        (b"MOV 1 99999999999999999999999\n", b""),
+        (b"ERR?\n", b"7\n"),
+        (b"MOV 1 50.000001\n", b""),
+        (b"ERR?\n", b"7\n"),
+        (b"MOV A 1\n", b""),
+        (b"ERR?\n", b"15\n"),
+        (b"SVO 1 2\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"STP 1\n", b""),
+        (b"ERR?\n", b"24\n"),
+        (b"ERR? 1\n", b""),
+        (b"ERR?\n", b"24\n"),
+        (b"SPA? 1 0x7777\n", b""),
+        (b"ERR?\n", b"54\n"),
+        (b"MOV? 1\n", b"1=0.000000\n"),
+    ]);
+}
+
+#[test]
+fn single_byte_commands() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"\x07", &[0xB1, b'\n']),
+        (b"\x05", b"0\n"),
+        (b"\x18", b""),
+        (b"ERR?\n", b"10\n"),
+        // Referencing: busy, and in motion.
+        (b"FRF 1\n", b""),
+        (b"\x07", &[0xB0, b'\n']),
+        (b"\x05", b"1\n"),
+        (b"FRF? 1\n", b"1=0\n"),
+    ]);
+    rig.steps(1, Inputs { index: true, ..Default::default() });
+    rig.transcript(&[(b"\x07", &[0xB1, b'\n']), (b"\x05", b"0\n"), (b"FRF? 1\n", b"1=1\n")]);
+    // #24 stops a move; a single byte inside a line is a command of its own and leaves the
+    // line intact.
+    rig.transcript(&[(b"SVO 1 1\n", b""), (b"MOV 1 1\n", b""), (b"\x05", b"1\n"), (b"ERR?\n", b"0\n")]);
+    rig.transcript(&[(b"MOV\x18? 1\n", b"1=0.000000\n"), (b"\x05", b"0\n"), (b"ERR?\n", b"10\n")]);
+    // Other control bytes are unknown commands.
+    rig.transcript(&[(b"\x01", b""), (b"ERR?\n", b"2\n")]);
+}
+
+#[test]
+fn hlp_lists_every_command_one_per_line() {
+    let expected: &[u8] = b"The following commands are valid: \n\
+#5 Request Motion Status \n\
+#7 Request Controller Ready Status \n\
+#24 Stop All Axes \n\
+*IDN? Get Device Identification \n\
+ACC {<AxisID> <Acceleration>} Set Closed-Loop Acceleration \n\
+ACC? [{<AxisID>}] Get Closed-Loop Acceleration \n\
+CST? [{<AxisID>}] Get Assignment Of Stages To Axes \n\
+CSV? Get Current Syntax Version \n\
+DEC {<AxisID> <Deceleration>} Set Closed-Loop Deceleration \n\
+DEC? [{<AxisID>}] Get Closed-Loop Deceleration \n\
+ERR? Get Error Number \n\
+FRF [{<AxisID>}] Fast Reference Move To Reference Mark \n\
+FRF? [{<AxisID>}] Get Referencing Result \n\
+HLP? Get List Of Available Commands \n\
+HLT [{<AxisID>}] Halt Motion Smoothly \n\
+HPA? Get List Of Available Parameters \n\
+MOV {<AxisID> <Position>} Set Target Position \n\
+MOV? [{<AxisID>}] Get Target Position \n\
+MVR {<AxisID> <Distance>} Set Target Relative To Current Target \n\
+ONT? [{<AxisID>}] Get On Target State \n\
+POS {<AxisID> <Position>} Set Real Position (Reference Mode Off) \n\
+POS? [{<AxisID>}] Get Real Position \n\
+RON {<AxisID> <ReferenceOn>} Set Reference Mode \n\
+RON? [{<AxisID>}] Get Reference Mode \n\
+SAI? [ALL] Get List Of Current Axis Identifiers \n\
+SPA {<ItemID> <PamID> <PamValue>} Set Volatile Memory Parameters \n\
+SPA? [{<ItemID> <PamID>}] Get Volatile Memory Parameters \n\
+STP Stop All Axes \n\
+SVO {<AxisID> <ServoState>} Set Servo Mode \n\
+SVO? [{<AxisID>}] Get Servo Mode \n\
+TMN? [{<AxisID>}] Get Minimum Commandable Position \n\
+TMX? [{<AxisID>}] Get Maximum Commandable Position \n\
+VEL {<AxisID> <Velocity>} Set Closed-Loop Velocity \n\
+VEL? [{<AxisID>}] Get Closed-Loop Velocity \n\
+WPA [<Password>] Save Parameters To Non-Volatile Memory \n\
+XDA? [{<AxisID>}] Get Drive Amplitude In V Peak-To-Peak (extension) \n\
+XDF? [{<AxisID>}] Get Drive Frequency In Hz (extension) \n\
+XFT? [{<AxisID>}] Get Fault Code And Text (extension) \n\
+XLT? Get Control-Loop Timing (extension) \n\
+XOS <AxisID> <Cycles> <Amplitude> <Frequency> Open-Loop Stepping With Servo Off (extension) \n\
+XPF? [{<AxisID>}] Get Preload Force In N (extension) \n\
+XTM? [{<AxisID>}] Get Stall Force In N And No-Load Speed In mm/s At Present Preload (extension) \n\
+end of help\n";
+    let mut rig = Rig::new();
+    rig.transcript(&[(b"HLP?\n", expected)]);
+    // Every listed command is known: sending it never answers "unknown command" (error 2).
+    let text = String::from_utf8(expected.to_vec()).unwrap();
+    for line in text.lines().skip(1) {
+        let cmd = line.split_whitespace().next().unwrap();
+        if cmd == "end" || cmd.starts_with('#') {
+            continue;
+        }
+        rig.send(format!("{cmd}\n").as_bytes());
+        let err = rig.send(b"ERR?\n");
+        assert_ne!(err, b"2\n", "{cmd} is listed but unknown");
+    }
+}
+
+#[test]
+fn a_line_with_one_bad_part_executes_nothing() {
+    let mut rig = Rig::new();
+    rig.ready();
+    rig.transcript(&[
+        // Second pair has an invalid axis: the valid first pair does not move either.
+        (b"MOV 1 0.5 2 0.7\n", b""),
+        (b"ERR?\n", b"15\n"),
+        (b"MOV? 1\n", b"1=0.000000\n"),
+        (b"\x05", b"0\n"),
+        // Bad number in the last pair: servo stays on.
+        (b"SVO 1 0 1 x\n", b""),
+        (b"ERR?\n", b"1\n"),
+        (b"SVO? 1\n", b"1=1\n"),
+        // One unknown parameter: the known one is not written.
+        (b"SPA 1 0x1 50 1 0x9999 3\n", b""),
+        (b"ERR?\n", b"54\n"),
+        (b"SPA? 1 0x1\n", b"1 0x1=40\n"),
+        // A query with one bad axis answers nothing at all.
+        (b"POS? 1 3\n", b""),
+        (b"ERR?\n", b"15\n"),
+    ]);
+}
+
+#[test]
+fn multi_axis_queries_and_framing() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"POS? 1 1\n", b"1=0.000000 \n1=0.000000\n"),
+        (b"POS?\n", b"1=0.000000\n"),
+        // Lower case, tabs, extra spaces and a CR before the LF are accepted; no CR goes out.
+        (b"pos?\t 1 \r\n", b"1=0.000000\n"),
+        (b"\n", b""),
+        (b"   \n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"TMN?\n", b"1=-50.000000\n"),
+        (b"TMX? 1\n", b"1=50.000000\n"),
+        (b"RON?\n", b"1=1\n"),
+        (b"SVO?\n", b"1=0\n"),
+        (b"ONT?\n", b"1=0\n"),
+    ]);
+}
+
+#[test]
+fn over_long_line_is_discarded_and_latches_error_3() {
+    let mut rig = Rig::new();
+    let mut long = vec![b'A'; LINE_CAPACITY + 50];
+    long.push(b'\n');
+    assert_eq!(rig.send(&long), b"");
+    // Exactly the capacity still fits.
+    let mut fits = b"POS?".to_vec();
+    fits.resize(LINE_CAPACITY, b' ');
+    fits.push(b'\n');
+    rig.transcript(&[(b"ERR?\n", b"3\n"), (&fits, b"1=0.000000\n"), (b"CSV?\n", b"2.0\n")]);
+}
+
+#[test]
+fn moves_need_servo_and_reference_and_stay_within_travel() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"MOV 1 0.5\n", b""),
+        (b"ERR?\n", b"5\n"),
+        (b"SVO 1 1\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"SVO 1 1\n", b""),
+        (b"SVO?\n", b"1=1\n"),
+        // Reference mode on, not referenced: 5.
+        (b"MOV 1 0.5\n", b""),
+        (b"ERR?\n", b"5\n"),
+        // POS only with reference mode off.
+        (b"POS 1 1\n", b""),
+        (b"ERR?\n", b"34\n"),
+        (b"RON 1 0\n", b""),
+        (b"FRF 1\n", b""),
+        (b"ERR?\n", b"50\n"),
+        (b"MOV 1 0.5\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"MOV? 1\n", b"1=0.500000\n"),
+        (b"MVR 1 0.25\n", b""),
+        (b"MOV?\n", b"1=0.750000\n"),
+        (b"MVR 1 -0.0000005\n", b""),
+        (b"MOV?\n", b"1=0.749999\n"),
+        // 1 nm resolution: 50.0000006 mm rounds to 50 000 001 nm, beyond TMX.
+        (b"MOV 1 50.0000006\n", b""),
+        (b"ERR?\n", b"7\n"),
+        (b"MOV 1 -51\n", b""),
+        (b"ERR?\n", b"7\n"),
+        (b"MOV?\n", b"1=0.749999\n"),
+        (b"\x05", b"1\n"),
+        (b"HLT 1\n", b""),
+        (b"ERR?\n", b"10\n"),
+        (b"STP\n", b""),
+        (b"ERR?\n", b"10\n"),
+        (b"\x05", b"0\n"),
+        (b"MOV?\n", b"1=0.000000\n"),
+    ]);
+}
+
+#[test]
+fn on_target_after_the_settling_time() {
+    let mut rig = Rig::new();
+    rig.ready();
+    rig.transcript(&[(b"ONT?\n", b"1=0\n"), (b"SPA? 1 0x3F\n", b"1 0x3F=0.01\n")]);
+    // Holding within the window: on target once the 10 ms settling time (100 periods) passed.
+    rig.steps(99, Inputs::default());
+    rig.transcript(&[(b"ONT?\n", b"1=0\n")]);
+    rig.steps(2, Inputs::default());
+    rig.transcript(&[(b"ONT? 1\n", b"1=1\n"), (b"\x05", b"0\n")]);
+    // Servo off: never on target.
+    rig.transcript(&[(b"SVO 1 0\n", b""), (b"ONT?\n", b"1=0\n")]);
+}
+
+#[test]
+fn pos_sets_the_position_with_reference_mode_off() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"RON 1 0\n", b""),
+        (b"POS 1 1.25\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"POS?\n", b"1=1.250000\n"),
+        (b"FRF?\n", b"1=1\n"),
+        (b"RON?\n", b"1=0\n"),
+    ]);
+}
+
+#[test]
+fn referencing_on_the_index_through_the_protocol() {
+    let mut rig = Rig::new();
+    for _ in 0..4 {
+        rig.encoder += 100; // 20 µm from where the controller started, 5 µm per period
+        rig.steps(1, Inputs::default());
+    }
+    rig.transcript(&[
+        (b"POS?\n", b"1=0.020000\n"),
+        (b"RON 1 1\n", b""),
+        (b"FRF 1\n", b""),
+        (b"\x07", &[0xB0, b'\n']),
+    ]);
+    rig.steps(20, Inputs::default());
+    assert_eq!(rig.ctl.state(), State::Referencing);
+    // Commands that would disturb the search are refused as busy.
+    rig.transcript(&[(b"SVO 1 1\n", b""), (b"ERR?\n", b"1005\n")]);
+    rig.steps(1, Inputs { index: true, ..Default::default() });
+    rig.transcript(&[(b"\x07", &[0xB1, b'\n']), (b"FRF?\n", b"1=1\n"), (b"POS?\n", b"1=0.000000\n")]);
+    // Servo was off: quiet afterwards.
+    assert_eq!(rig.ctl.state(), State::Idle);
+}
+
+#[test]
+fn referencing_failure_latches_error_45() {
+    let mut cfg = defaults::controller_config();
+    cfg.reference_timeout_s = 0.01;
+    let mut rig = Rig::new();
+    rig.ctl = Controller::new(cfg).unwrap();
+    rig.steps(5, Inputs::default());
+    rig.transcript(&[(b"FRF\n", b"")]);
+    rig.steps(200, Inputs::default());
+    rig.transcript(&[
+        (b"\x07", &[0xB1, b'\n']),
+        (b"FRF?\n", b"1=0\n"),
+        (b"ERR?\n", b"45\n"),
+        (b"ERR?\n", b"0\n"),
+    ]);
+}
+
+#[test]
+fn velocity_acceleration_deceleration() {
+    Rig::new().transcript(&[
+        (b"VEL?\n", b"1=10\n"),
+        (b"VEL 1 2.5\n", b""),
+        (b"VEL? 1\n", b"1=2.5\n"),
+        (b"SPA? 1 0xA\n", b"1 0xA=2.5\n"),
+        (b"VEL 1 0\n", b""),
+        (b"ERR?\n", b"8\n"),
+        (b"VEL 1 -1\n", b""),
+        (b"ERR?\n", b"8\n"),
+        (b"VEL?\n", b"1=2.5\n"),
+        (b"ACC 1 500\n", b""),
+        (b"ACC?\n", b"1=500\n"),
+        (b"DEC 1 0.125\n", b""),
+        (b"DEC?\n", b"1=0.125\n"),
+        (b"DEC 1 x\n", b""),
+        (b"ERR?\n", b"1\n"),
+        (b"ACC 1 0\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"ACC?\n", b"1=500\n"),
+    ]);
+}
+
+#[test]
+fn parameters_spa_hpa_wpa() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"SPA? 1 0x1\n", b"1 0x1=40\n"),
+        (b"SPA 1 0x1 55.5\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"SPA? 1 0x1\n", b"1 0x1=55.5\n"),
+        // Decimal ids work too; several in one line.
+        (b"SPA 1 1 60 1 0x3F 0.02\n", b""),
+        (b"SPA? 1 0x1 1 0x3F\n", b"1 0x1=60 \n1 0x3F=0.02\n"),
+        (b"SPA? 1 0x15 1 0x30\n", b"1 0x15=50 \n1 0x30=-50\n"),
+        (b"SPA? 1 0x1005 1 0x1021\n", b"1 0x1005=1 \n1 0x1021=10000\n"),
+        // Read-only, unknown, out of range (negative travel above positive), not an integer.
+        (b"SPA 1 0x1021 5000\n", b""),
+        (b"ERR?\n", b"64\n"),
+        (b"SPA 1 0x4242 1\n", b""),
+        (b"ERR?\n", b"54\n"),
+        (b"SPA 1 0x30 60\n", b""),
+        (b"ERR?\n", b"17\n"),
+        // Travel is bounded to ±1 m.
+        (b"SPA 1 0x15 1000.000001\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"SPA 1 0x15 1e300\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"SPA 1 0x1005 0.5\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"SPA 1 0x1 -1\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"SPA 1 0x1\n", b""),
+        (b"ERR?\n", b"24\n"),
+        (b"SPA 2 0x1 1\n", b""),
+        (b"ERR?\n", b"15\n"),
+        (b"SPA? 1 0x1\n", b"1 0x1=60\n"),
+        // Travel limits through SPA show in TMN?/TMX?.
+        (b"SPA 1 0x15 12.5 1 0x30 -2\n", b""),
+        (b"TMX?\n", b"1=12.500000\n"),
+        (b"TMN?\n", b"1=-2.000000\n"),
+        (b"WPA\n", b""),
+        (b"ERR?\n", b"0\n"),
+    ]);
+    let stored = rig.board.stored.expect("WPA stored the parameters");
+    assert_eq!(stored.kp_per_s, 60.0);
+    assert_eq!(stored.travel_max_nm, 12_500_000);
+    assert_eq!(stored.travel_min_nm, -2_000_000);
+    rig.board.fail_store = true;
+    rig.transcript(&[(b"WPA 100\n", b""), (b"ERR?\n", b"4001\n"), (b"WPA 7\n", b""), (b"ERR?\n", b"56\n")]);
+
+    // SPA? without arguments lists every parameter, one line each.
+    let all = String::from_utf8(rig.send(b"SPA?\n")).unwrap();
+    assert_eq!(all.lines().count(), PARAMS.len());
+    assert!(all.starts_with("1 0x1=60 \n1 0x2=0.0002 \n"), "{all}");
+}
+
+#[test]
+fn hpa_lists_id_type_and_description_as_pipython_parses_them() {
+    let text = String::from_utf8(Rig::new().send(b"HPA?\n")).unwrap();
+    let lines: Vec<&str> = text.split('\n').collect();
+    assert_eq!(lines.first(), Some(&"#Possible parameters of this device: "));
+    assert_eq!(lines.get(1), Some(&"0x1=\t0\t1\tFLOAT\tServo\tPosition feedback gain (1/s) "));
+    assert_eq!(lines[lines.len() - 2], "end of help");
+    assert_eq!(lines[lines.len() - 1], "");
+    // PIPython: int(line.split('=')[0], 16) and line.split()[3] is the type.
+    let mut ids = Vec::new();
+    for line in lines.iter().filter(|l| l.contains('=')) {
+        let id =
+            u32::from_str_radix(line.split('=').next().unwrap().trim().trim_start_matches("0x"), 16).unwrap();
+        let kind = line.split_whitespace().nth(3).unwrap();
+        let p = PARAMS.iter().find(|p| p.id == id).unwrap();
+        assert_eq!(kind, p.kind.name());
+        assert_eq!(line.matches('=').count(), 1, "{line}");
+        ids.push(id);
+    }
+    assert_eq!(ids.len(), PARAMS.len());
+}
+
+#[test]
+fn extensions_preload_drive_fault_thrust_and_timing() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"XPF?\n", b"1=15.995\n"),
+        (b"XDA? 1\n", b"1=0.000\n"),
+        (b"XDF?\n", b"1=2200.0\n"),
+        (b"XFT?\n", b"1=0 no fault\n"),
+        (b"XLT?\n", b"step_cycles_last=12 \nstep_cycles_max=34 \noverruns=0 \ncore_clock_hz=170000000\n"),
+    ]);
+    // Thrust model: the controller's own figures at the measured preload, three decimals.
+    let (stall, speed) = rig.ctl.thrust_limits().unwrap();
+    let text = String::from_utf8(rig.send(b"XTM?\n")).unwrap();
+    let values: Vec<f32> =
+        text.trim_end().trim_start_matches("1=").split(' ').map(|v| v.parse().unwrap()).collect();
+    assert_eq!(values.len(), 2, "{text}");
+    assert!((values[0] - stall).abs() <= 0.0005 && (values[1] - speed).abs() <= 0.0005, "{text}");
+    assert!(stall > 1.0 && speed > 0.5, "a plausible motor: {stall} N, {speed} mm/s");
+
+    // A fault: latched as 1024 (motion error) and explained by XFT?; SVO recovers.
+    rig.ready();
+    rig.encoder = rig.encoder.wrapping_add(1000);
+    rig.steps(1, Inputs::default());
+    assert!(matches!(rig.ctl.state(), State::Fault(_)));
+    rig.transcript(&[
+        (b"XFT?\n", b"1=5 encoder jump\n"),
+        (b"ERR?\n", b"1024\n"),
+        (b"SVO?\n", b"1=0\n"),
+        (b"SVO 1 1\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"XFT?\n", b"1=0 no fault\n"),
+        (b"SVO?\n", b"1=1\n"),
+    ]);
+
+    // Preload sensor out of range: XPF? and XTM? refuse with 505.
+    rig.transcript(&[(b"SVO 1 0\n", b"")]);
+    for _ in 0..3 {
+        rig.ctl.step(&Inputs { encoder_raw: rig.encoder, preload_word: 4095, ..Default::default() });
+    }
+    rig.transcript(&[(b"XPF?\n", b""), (b"ERR?\n", b"505\n"), (b"XTM?\n", b""), (b"ERR?\n", b"505\n")]);
+}
+
+#[test]
+fn open_loop_stepping() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"SVO 1 1\n", b""),
+        (b"XOS 1 100 50 1000\n", b""),
+        (b"ERR?\n", b"303\n"),
+        (b"SVO 1 0\n", b""),
+        (b"XOS\n", b""),
+        (b"ERR?\n", b"26\n"),
+        (b"XOS 1 5 50\n", b""),
+        (b"ERR?\n", b"24\n"),
+        (b"XOS 1 1.5 50 1000\n", b""),
+        (b"ERR?\n", b"1\n"),
+        (b"XOS 1 0 50 1000\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"XOS 1 5 150 1000\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"XOS 1 5 50 100\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"XOS 2 5 50 1000\n", b""),
+        (b"ERR?\n", b"15\n"),
+        (b"\x05", b"0\n"),
+        // 100 cycles at 1 kHz: 0.1 s = 1000 control periods.
+        (b"XOS 1 -100 50 1000\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"\x05", b"1\n"),
+    ]);
+    rig.steps(200, Inputs::default());
+    rig.transcript(&[(b"XDA?\n", b"1=50.000\n"), (b"XDF?\n", b"1=1000.0\n")]);
+    rig.steps(800, Inputs::default());
+    assert_eq!(rig.ctl.state(), State::OpenLoop);
+    rig.steps(2, Inputs::default());
+    assert_eq!(rig.ctl.state(), State::Idle);
+    rig.transcript(&[(b"\x05", b"0\n")]);
+    // STP ends stepping at once.
+    rig.transcript(&[
+        (b"XOS 1 1000 50 1000\n", b""),
+        (b"STP\n", b""),
+        (b"ERR?\n", b"10\n"),
+        (b"\x05", b"0\n"),
+    ]);
+    assert_eq!(rig.ctl.state(), State::Idle);
+}
+
+#[test]
+fn pending_lines_are_what_was_sent() {
+    let mut gcs = Gcs::new();
+    let got: Vec<Pending> = b"MOV 1 2\n\x07POS?\n".iter().filter_map(|&b| gcs.push_byte(b)).collect();
+    assert_eq!(got.len(), 3);
+    assert!(matches!(&got[0], Pending::Line(l) if l.as_slice() == b"MOV 1 2"));
+    assert_eq!(got[1], Pending::Byte(0x07));
+    assert!(matches!(&got[2], Pending::Line(l) if l.as_slice() == b"POS?"));
+    // A partial line is dropped on request (client gone).
+    assert!(b"MOV 1".iter().all(|&b| gcs.push_byte(b).is_none()));
+    gcs.discard_partial_line();
+    assert!(matches!(gcs.push_byte(b'\n'), Some(Pending::Line(l)) if l.is_empty()));
+}
