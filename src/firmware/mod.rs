@@ -16,8 +16,9 @@
 //! | preload cell (amplified bridge) | PC0 [A5] | ADC1_IN6 |
 //! | UART to the host | PA2 / PA3 | LPUART1 TX / RX (ST-LINK virtual COM port) |
 
-// Host builds of the bin only compile it for its tests.
-#[cfg_attr(not(target_os = "none"), allow(dead_code))]
+// On the host the bin is only a stub plus the unit tests of `ring`.
+#![cfg_attr(not(target_os = "none"), allow(dead_code))]
+
 pub mod ring;
 
 #[cfg(all(target_os = "none", feature = "dac-drive", feature = "pwm-drive"))]
