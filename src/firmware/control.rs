@@ -11,15 +11,19 @@
 //! step is done, the tick counts an overrun and the watchdog is not fed.
 //!
 //! One tick: read the encoder count, the latest preload word and the index flag; run
-//! `Controller::step` (under the controller's critical-section mutex, which the UART task also
-//! takes for its short `execute`); write the 20 sample pairs into the free half; set the
-//! amplifier enable; measure the tick with the DWT cycle counter; feed the IWDG if on time.
+//! `Controller::step`; write the 20 sample pairs into the free half; set the amplifier enable;
+//! measure the tick with the DWT cycle counter; feed the IWDG if on time.
+//!
+//! Sharing the controller: the tick runs at priority 1 with interrupts enabled, so the UART,
+//! time-driver and EXTI interrupts (priority 0, all short) preempt it and no received byte waits
+//! for a control step. The UART task (thread mode) takes the controller through
+//! [`TickLock::lock`], which masks only the TIM7 interrupt for its short `execute`; the tick
+//! itself needs no lock, as nothing that touches the controller can preempt it.
 
-use core::cell::RefCell;
-use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use core::cell::UnsafeCell;
+use core::sync::atomic::{compiler_fence, AtomicBool, AtomicU32, Ordering};
 
-use cortex_m::peripheral::DWT;
-use critical_section::Mutex;
+use cortex_m::peripheral::{DWT, NVIC};
 use embassy_stm32::gpio::Output;
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
@@ -35,8 +39,58 @@ use super::encoder::Encoder;
 use super::ring::{self, Refill};
 use super::{CORE_HZ, SAMPLE_COUNTS, TICK_COUNTS};
 
+/// Data shared between the TIM7 tick and thread-mode code.
+pub struct TickLock<T> {
+    data: UnsafeCell<T>,
+    busy: AtomicBool,
+}
+
+// SAFETY: access is serialised: thread mode only inside `lock` (TIM7 masked, thread mode is one
+// context, `busy` refuses nesting), the tick only from its own handler, which cannot run while
+// thread mode holds the lock and is not preempted by anything that touches this data.
+unsafe impl<T: Send> Sync for TickLock<T> {}
+
+impl<T> TickLock<T> {
+    const fn new(v: T) -> Self {
+        TickLock { data: UnsafeCell::new(v), busy: AtomicBool::new(false) }
+    }
+
+    /// Runs `f` with the TIM7 interrupt masked. For thread mode (tasks, `main`) only; keep `f`
+    /// short, it delays the control tick. `None` (and `f` not run) if this lock is already held,
+    /// i.e. when called from inside another `lock` of the same data.
+    pub fn lock<R>(&self, f: impl FnOnce(&mut T) -> R) -> Option<R> {
+        if self.busy.swap(true, Ordering::Acquire) {
+            return None;
+        }
+        let irq = interrupt::TIM7_DAC;
+        let was_enabled = NVIC::is_enabled(irq);
+        NVIC::mask(irq);
+        // The mask takes effect before the next access.
+        cortex_m::asm::dsb();
+        cortex_m::asm::isb();
+        compiler_fence(Ordering::SeqCst);
+        // SAFETY: the tick cannot run now, and `busy` makes this the only thread-mode borrow.
+        let r = f(unsafe { &mut *self.data.get() });
+        compiler_fence(Ordering::SeqCst);
+        if was_enabled {
+            // SAFETY: restores the state found on entry.
+            unsafe { NVIC::unmask(irq) };
+        }
+        self.busy.store(false, Ordering::Release);
+        Some(r)
+    }
+
+    /// # Safety
+    /// Only from the TIM7 handler.
+    #[allow(clippy::mut_from_ref)]
+    unsafe fn in_tick(&self) -> &mut T {
+        // SAFETY: the caller is the tick; thread mode holds no reference while the tick runs.
+        unsafe { &mut *self.data.get() }
+    }
+}
+
 /// The controller, shared by the tick (every 100 µs) and the UART task (per command).
-pub static CONTROLLER: Mutex<RefCell<Option<Controller>>> = Mutex::new(RefCell::new(None));
+pub static CONTROLLER: TickLock<Option<Controller>> = TickLock::new(None);
 /// Latest preload-cell word from the ADC task (u16 in a u32).
 pub static PRELOAD_WORD: AtomicU32 = AtomicU32::new(0);
 /// Set by the index task, taken by the next tick.
@@ -58,7 +112,8 @@ pub struct TickCtx {
     refill: Refill,
 }
 
-static TICK: Mutex<RefCell<Option<TickCtx>>> = Mutex::new(RefCell::new(None));
+/// Set up by `start` (TIM7 interrupt still off), then used by the tick alone.
+static TICK: TickLock<Option<TickCtx>> = TickLock::new(None);
 
 pub fn loop_stats() -> LoopStats {
     LoopStats {
@@ -75,7 +130,7 @@ pub fn ticks() -> u32 {
 
 /// Installs the controller.
 pub fn install_controller(ctl: Controller) {
-    critical_section::with(|cs| *CONTROLLER.borrow_ref_mut(cs) = Some(ctl));
+    let _ = CONTROLLER.lock(|c| *c = Some(ctl));
 }
 
 /// Sets up TIM7 and starts it together with the drive's sample timer and DMA.
@@ -93,64 +148,62 @@ pub fn start(tim7: Peri<'static, TIM7>, drive: Drive, encoder: Encoder, amp_enab
     // The timer's clock must stay on for the life of the firmware; `Timer`'s drop would stop it.
     core::mem::forget(timer);
 
-    critical_section::with(|cs| {
-        let mut ctx = TickCtx { drive, encoder, amp_enable, refill: Refill::default() };
+    let _ = TICK.lock(|tick| {
+        let ctx = tick.insert(TickCtx { drive, encoder, amp_enable, refill: Refill::default() });
         let preset = ring::tick_preset(TICK_COUNTS, TICK_OFFSET_SAMPLES * SAMPLE_COUNTS);
-        // Both counters start within a few cycles of each other; from then on they share a clock.
+        // Both counters start within a few cycles of each other (in one critical section); from
+        // then on they share a clock.
         ctx.drive.start_with(|| {
             pac::TIM7.cnt().write(|w| w.set_cnt(preset as u16));
             pac::TIM7.cr1().modify(|w| w.set_cen(true));
         });
-        *TICK.borrow_ref_mut(cs) = Some(ctx);
     });
 
     let irq = interrupt::TIM7_DAC;
     irq.set_priority(Priority::P1);
-    // SAFETY: the handler below only touches state behind critical-section mutexes and atomics.
+    // SAFETY: the handler touches `TICK` and `CONTROLLER` as `TickLock` allows, the rest are atomics.
     unsafe { irq.enable() };
 }
 
 #[interrupt]
 fn TIM7_DAC() {
     pac::TIM7.sr().write(|w| w.set_uif(false));
-    critical_section::with(|cs| {
-        let mut tick = TICK.borrow_ref_mut(cs);
-        let Some(t) = tick.as_mut() else { return };
-        let start = DWT::cycle_count();
+    // SAFETY: this is the tick.
+    let (tick, controller) = unsafe { (TICK.in_tick(), CONTROLLER.in_tick()) };
+    let Some(t) = tick.as_mut() else { return };
+    let start = DWT::cycle_count();
 
-        let (half, slipped) = t.refill.on_tick(t.drive.dma_half());
-        // `..Default::default()` keeps this building when the protocol issue adds input fields.
-        #[allow(clippy::needless_update)]
-        let inputs = Inputs {
-            encoder_raw: t.encoder.raw(),
-            preload_word: PRELOAD_WORD.load(Ordering::Relaxed) as u16,
-            index: INDEX_SEEN.swap(false, Ordering::Relaxed),
-            ..Default::default()
-        };
-        let out = CONTROLLER.borrow_ref_mut(cs).as_mut().map(|c| c.step(&inputs));
-        match out {
-            Some(out) => {
-                t.drive.write_half(half, &out.dac);
-                t.amp_enable.set_level(out.amp_enable.into());
-            }
-            None => {
-                t.amp_enable.set_low();
-                t.drive.write_half_safe(half);
-            }
+    let (half, slipped) = t.refill.on_tick(t.drive.dma_half());
+    // `..Default::default()` keeps this building when the protocol issue adds input fields.
+    #[allow(clippy::needless_update)]
+    let inputs = Inputs {
+        encoder_raw: t.encoder.raw(),
+        preload_word: PRELOAD_WORD.load(Ordering::Relaxed) as u16,
+        index: INDEX_SEEN.swap(false, Ordering::Relaxed),
+        ..Default::default()
+    };
+    match controller.as_mut().map(|c| c.step(&inputs)) {
+        Some(out) => {
+            t.drive.write_half(half, &out.dac);
+            t.amp_enable.set_level(out.amp_enable.into());
         }
-        // The DMA already in the half just written: part of it played stale samples.
-        let late = t.drive.dma_half() == half;
+        None => {
+            t.amp_enable.set_low();
+            t.drive.write_half_safe(half);
+        }
+    }
+    // The DMA already in the half just written: part of it played stale samples.
+    let late = t.drive.dma_half() == half;
 
-        let cycles = DWT::cycle_count().wrapping_sub(start);
-        STEP_CYCLES_LAST.store(cycles, Ordering::Relaxed);
-        if cycles > STEP_CYCLES_MAX.load(Ordering::Relaxed) {
-            STEP_CYCLES_MAX.store(cycles, Ordering::Relaxed);
-        }
-        TICKS.store(TICKS.load(Ordering::Relaxed).wrapping_add(1), Ordering::Relaxed);
-        if slipped || late {
-            OVERRUNS.store(OVERRUNS.load(Ordering::Relaxed).wrapping_add(1), Ordering::Relaxed);
-        } else {
-            super::safety::feed_watchdog();
-        }
-    });
+    let cycles = DWT::cycle_count().wrapping_sub(start);
+    STEP_CYCLES_LAST.store(cycles, Ordering::Relaxed);
+    if cycles > STEP_CYCLES_MAX.load(Ordering::Relaxed) {
+        STEP_CYCLES_MAX.store(cycles, Ordering::Relaxed);
+    }
+    TICKS.store(TICKS.load(Ordering::Relaxed).wrapping_add(1), Ordering::Relaxed);
+    if slipped || late {
+        OVERRUNS.store(OVERRUNS.load(Ordering::Relaxed).wrapping_add(1), Ordering::Relaxed);
+    } else {
+        super::safety::feed_watchdog();
+    }
 }

@@ -1,7 +1,8 @@
 //! UART on LPUART1 (PA2 TX, PA3 RX: the ST-LINK virtual COM port), 115200 8N1, embassy's
 //! interrupt-driven `BufferedUart` (256-byte receive ring filled by the interrupt, so bytes keep
 //! arriving while a command runs). Lines go to the core's protocol (`piezo_drive::gcs`): bytes
-//! are collected outside any lock; only `execute` runs with the controller locked.
+//! are collected outside any lock; only `execute` runs with the controller locked (the TIM7 tick
+//! masked, see `control.rs`).
 
 use embassy_stm32::usart::BufferedUart;
 use embedded_io_async::{Read, Write};
@@ -46,8 +47,8 @@ pub async fn uart_task(mut uart: BufferedUart<'static>) {
         for &byte in chunk.iter().take(n) {
             let Some(pending) = gcs.push_byte(byte) else { continue };
             reply.clear();
-            critical_section::with(|cs| {
-                if let Some(ctl) = CONTROLLER.borrow_ref_mut(cs).as_mut() {
+            let _ = CONTROLLER.lock(|ctl| {
+                if let Some(ctl) = ctl.as_mut() {
                     gcs.execute(&pending, ctl, &mut board, &mut reply);
                 }
             });
