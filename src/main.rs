@@ -128,11 +128,12 @@ mod board {
             Timer::after_secs(10).await;
             let s = control::loop_stats();
             defmt::info!(
-                "ticks {} step cycles last {} max {} overruns {}",
+                "ticks {} step cycles last {} max {} overruns {} servo-offs for overruns {}",
                 control::ticks(),
                 s.step_cycles_last,
                 s.step_cycles_max,
-                s.overruns
+                s.overruns,
+                control::OVERRUN_SERVO_OFFS.load(core::sync::atomic::Ordering::Relaxed)
             );
         }
     }

@@ -8,7 +8,8 @@
 //! [`TICK_OFFSET_SAMPLES`] samples after the DMA crosses into a half. Each tick reads the DMA's
 //! position (NDTR) and refills the other half, which the DMA reaches 90 µs later; if the DMA is
 //! found in the same half as last time, or has entered the half just written by the time the
-//! step is done, the tick counts an overrun and the watchdog is not fed.
+//! step is done, the tick counts an overrun and the watchdog is not fed; after
+//! [`OVERRUN_SERVO_OFF`] late ticks in a row the tick switches the servo off.
 //!
 //! One tick: read the encoder count, the latest preload word and the index flag; run
 //! `Controller::step`; write the 20 sample pairs into the free half; set the amplifier enable;
@@ -100,6 +101,13 @@ static STEP_CYCLES_LAST: AtomicU32 = AtomicU32::new(0);
 static STEP_CYCLES_MAX: AtomicU32 = AtomicU32::new(0);
 static OVERRUNS: AtomicU32 = AtomicU32::new(0);
 static TICKS: AtomicU32 = AtomicU32::new(0);
+/// Times the tick switched the servo off after [`OVERRUN_SERVO_OFF`] late ticks in a row.
+pub static OVERRUN_SERVO_OFFS: AtomicU32 = AtomicU32::new(0);
+
+/// Late ticks in a row after which the tick switches the servo off (the controller ramps the
+/// drive to quiet): a loop that cannot keep its rate must not keep driving the motor. The IWDG
+/// (not fed by late ticks) resets the chip if even that does not bring the loop back on time.
+pub const OVERRUN_SERVO_OFF: u32 = 10;
 
 /// The tick comes this many samples after the DMA enters a half.
 pub const TICK_OFFSET_SAMPLES: u32 = 2;
@@ -110,6 +118,7 @@ pub struct TickCtx {
     pub encoder: Encoder,
     pub amp_enable: Output<'static>,
     refill: Refill,
+    late_in_a_row: u32,
 }
 
 /// Set up by `start` (TIM7 interrupt still off), then used by the tick alone.
@@ -149,7 +158,8 @@ pub fn start(tim7: Peri<'static, TIM7>, drive: Drive, encoder: Encoder, amp_enab
     core::mem::forget(timer);
 
     let _ = TICK.lock(|tick| {
-        let ctx = tick.insert(TickCtx { drive, encoder, amp_enable, refill: Refill::default() });
+        let ctx =
+            tick.insert(TickCtx { drive, encoder, amp_enable, refill: Refill::default(), late_in_a_row: 0 });
         let preset = ring::tick_preset(TICK_COUNTS, TICK_OFFSET_SAMPLES * SAMPLE_COUNTS);
         // Both counters start within a few cycles of each other (in one critical section); from
         // then on they share a clock.
@@ -203,7 +213,17 @@ fn TIM7_DAC() {
     TICKS.store(TICKS.load(Ordering::Relaxed).wrapping_add(1), Ordering::Relaxed);
     if slipped || late {
         OVERRUNS.store(OVERRUNS.load(Ordering::Relaxed).wrapping_add(1), Ordering::Relaxed);
+        t.late_in_a_row = t.late_in_a_row.saturating_add(1);
+        if t.late_in_a_row == OVERRUN_SERVO_OFF {
+            if let Some(c) = controller.as_mut() {
+                if c.servo() {
+                    let _ = c.set_servo(false);
+                    OVERRUN_SERVO_OFFS.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        }
     } else {
+        t.late_in_a_row = 0;
         super::safety::feed_watchdog();
     }
 }
