@@ -24,7 +24,8 @@
 use core::cell::UnsafeCell;
 use core::sync::atomic::{compiler_fence, AtomicBool, AtomicU32, Ordering};
 
-use cortex_m::peripheral::{DWT, NVIC};
+use cortex_m::peripheral::scb::VectActive;
+use cortex_m::peripheral::{DWT, NVIC, SCB};
 use embassy_stm32::gpio::Output;
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
@@ -56,11 +57,11 @@ impl<T> TickLock<T> {
         TickLock { data: UnsafeCell::new(v), busy: AtomicBool::new(false) }
     }
 
-    /// Runs `f` with the TIM7 interrupt masked. For thread mode (tasks, `main`) only; keep `f`
-    /// short, it delays the control tick. `None` (and `f` not run) if this lock is already held,
-    /// i.e. when called from inside another `lock` of the same data.
+    /// Runs `f` with the TIM7 interrupt masked. For thread mode (tasks, `main`); keep `f` short,
+    /// it delays the control tick. `None` (and `f` not run) when called from an interrupt or from
+    /// inside another `lock` of the same data.
     pub fn lock<R>(&self, f: impl FnOnce(&mut T) -> R) -> Option<R> {
-        if self.busy.swap(true, Ordering::Acquire) {
+        if SCB::vect_active() != VectActive::ThreadMode || self.busy.swap(true, Ordering::Acquire) {
             return None;
         }
         let irq = interrupt::TIM7_DAC;
