@@ -5,7 +5,7 @@
 //!
 //! Data path: TIM6 update (200 kHz, TRGO = update) triggers both DAC channels at once; each
 //! trigger moves the dual holding register to the outputs and DAC channel 1's DMA request makes
-//! DMA1 channel 1 (DMAMUX request 6) load the next packed word into DHR12RD (channel 1 in bits
+//! DMA1 channel 1 (DMAMUX request 6, taken from embassy's chip metadata) load the next packed word into DHR12RD (channel 1 in bits
 //! 0..12, channel 2 in bits 16..28). The DMA runs circular over 2 × 20 words, so both stacks
 //! always change on the same trigger (phase-locked by construction) and the control tick
 //! refills the half the DMA is not reading.
@@ -31,7 +31,6 @@ use super::{SAFE_DAC_WORD, SAMPLE_COUNTS};
 
 /// DMA1 channel 1 (index 0) and its DMAMUX1 channel (index 0).
 const DMA_CH: usize = 0;
-const DMAMUX_REQ_DAC1_CH1: u8 = 6;
 
 /// The circular buffer the DMA reads. Written only by the control tick (one writer, in an
 /// interrupt, in the half the DMA is not reading) and by `force_safe` in the panic handler with
@@ -77,7 +76,9 @@ impl Drive {
 
         let ch = pac::DMA1.ch(DMA_CH);
         ch.cr().write(|w| w.set_en(false));
-        pac::DMAMUX1.ccr(DMA_CH).write(|w| w.set_dmareq_id(DMAMUX_REQ_DAC1_CH1));
+        // DMAMUX request of DAC1 channel 1 (6 on the G474), from embassy's chip metadata.
+        let request = <DMA1_CH1 as embassy_stm32::dac::Dma<DAC1, embassy_stm32::dac::Ch1>>::request(&dma);
+        pac::DMAMUX1.ccr(DMA_CH).write(|w| w.set_dmareq_id(request));
         ch.par().write_value(pac::DAC1.dhr12rd().as_ptr() as u32);
         ch.mar().write_value(buffer_ptr() as u32);
         ch.ndtr().write(|w| w.set_ndt(SAMPLES as u16));

@@ -26,7 +26,6 @@ use super::ring::{self, HALF, SAMPLES};
 use super::{SAFE_DAC_WORD, SAMPLE_HZ};
 
 const DMA_CH: usize = 0;
-const DMAMUX_REQ_TIM1_UP: u8 = 46;
 /// Two compare values per sample.
 const TRANSFERS: usize = 2 * SAMPLES;
 /// CCR1's word offset in the timer's register block (0x34 / 4): the DMA burst's base.
@@ -84,7 +83,9 @@ impl Drive {
 
         let ch = pac::DMA1.ch(DMA_CH);
         ch.cr().write(|w| w.set_en(false));
-        pac::DMAMUX1.ccr(DMA_CH).write(|w| w.set_dmareq_id(DMAMUX_REQ_TIM1_UP));
+        // DMAMUX request of TIM1_UP (46 on the G474), from embassy's chip metadata.
+        let request = <DMA1_CH1 as embassy_stm32::timer::UpDma<TIM1>>::request(&dma);
+        pac::DMAMUX1.ccr(DMA_CH).write(|w| w.set_dmareq_id(request));
         ch.par().write_value(pac::TIM1.dmar().as_ptr() as u32);
         ch.mar().write_value(buffer_ptr() as u32);
         ch.ndtr().write(|w| w.set_ndt(TRANSFERS as u16));
