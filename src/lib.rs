@@ -6,6 +6,8 @@
 //! - [`model`]: fixed-point steady-state thrust model and its inverse (the feedforward);
 //! - [`profile`]: online trapezoidal motion profile;
 //! - [`controller`]: state machine, position control, supervision; one entry point `step`;
+//! - [`storage`]: the flash parameter record (encode/decode with version and CRC);
+//! - [`gcs`]: the UART command protocol (interim minimal set until the protocol issue lands);
 //! - [`defaults`]: the firmware's default settings, with the baked motor table [`motor_table`].
 #![no_std]
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
@@ -18,6 +20,7 @@ pub mod model;
 pub mod motor_table;
 pub mod profile;
 pub mod sensors;
+pub mod storage;
 pub mod trig;
 
 /// The core's fixed-point number: 16 integer bits, 16 fraction bits (resolution 1.5e-5).

@@ -1,18 +1,32 @@
 //! Firmware binary for the NUCLEO-G474RE motor-driver board: thin glue between the chip and the
-//! `piezo_drive` control core. At this stage it brings the chip up at 170 MHz and blinks LD2.
+//! `piezo_drive` control core. Peripherals are bound here, at the top of `main`; each task or
+//! interrupt lives in its own module under `firmware/` (pin map in `firmware/mod.rs`).
 #![cfg_attr(target_os = "none", no_std, no_main)]
+
+mod firmware;
 
 #[cfg(target_os = "none")]
 mod board {
     use defmt_rtt as _;
     use embassy_executor::Spawner;
-    use embassy_stm32::gpio::{Level, Output, Speed};
-    use embassy_stm32::rcc;
+    use embassy_stm32::exti::ExtiInput;
+    use embassy_stm32::gpio::{Level, Output, Pull, Speed};
     use embassy_stm32::time::Hertz;
+    use embassy_stm32::usart::{self, BufferedUart};
+    use embassy_stm32::wdg::IndependentWatchdog;
+    use embassy_stm32::{bind_interrupts, peripherals, rcc};
     use embassy_time::Timer;
-    use panic_probe as _;
+    use piezo_drive::controller::Controller;
+    use piezo_drive::defaults;
 
-    /// 24 MHz HSE → PLL (M=6, N=85, R=2) → 170 MHz, boost mode (needed above 150 MHz).
+    use crate::firmware::{control, encoder, params_flash, preload, safety, uart};
+
+    bind_interrupts!(struct Irqs {
+        LPUART1 => usart::BufferedInterruptHandler<peripherals::LPUART1>;
+    });
+
+    /// 24 MHz HSE → PLL (M=6, N=85, R=2) → 170 MHz, boost mode (needed above 150 MHz); ADC12 on
+    /// the system clock (embassy picks the prescaler).
     fn clocks() -> embassy_stm32::Config {
         let mut config = embassy_stm32::Config::default();
         config.rcc.hse = Some(rcc::Hse { freq: Hertz(24_000_000), mode: rcc::HseMode::Oscillator });
@@ -26,18 +40,107 @@ mod board {
         });
         config.rcc.sys = rcc::Sysclk::PLL1_R;
         config.rcc.boost = true;
+        config.rcc.mux.adc12sel = rcc::mux::Adcsel::SYS;
         config
     }
 
     #[embassy_executor::main]
-    async fn main(_spawner: Spawner) {
+    async fn main(spawner: Spawner) {
+        let reset = safety::take_reset_cause();
         let p = embassy_stm32::init(clocks());
-        defmt::info!("piezo-drive {} up", env!("CARGO_PKG_VERSION"));
-        // PA5 is LD2 on the Nucleo; it becomes DAC1_OUT2 once the drive output lands.
-        let mut led = Output::new(p.PA5, Level::Low, Speed::Low);
+        // Amplifier off before anything else is set up.
+        let amp_enable = Output::new(p.PA10, Level::Low, Speed::Low);
+        safety::freeze_on_debug_halt();
+        defmt::info!("piezo-drive {} up at 170 MHz; reset cause {}", env!("CARGO_PKG_VERSION"), reset);
+        if reset.independent_watchdog {
+            defmt::warn!("the last reset came from the independent watchdog");
+        }
+
+        // DWT cycle counter for the loop timing.
+        if let Some(mut cp) = cortex_m::Peripherals::take() {
+            cp.DCB.enable_trace();
+            cp.DWT.enable_cycle_counter();
+        } else {
+            defmt::warn!("core peripherals taken: loop timing reads 0");
+        }
+
+        // Parameters: flash record or defaults.
+        let defaults = defaults::controller_config();
+        let mut flash = params_flash::open(p.FLASH);
+        let (cfg, loaded) = params_flash::load(flash.as_mut(), &defaults);
+        match loaded {
+            Ok(()) => defmt::info!("parameters loaded from flash"),
+            Err(e) => defmt::info!("parameters: defaults ({})", defmt::Debug2Format(&e)),
+        }
+        let ctl = match Controller::new(cfg) {
+            Ok(c) => c,
+            Err(e) => {
+                defmt::error!("stored parameters refused ({}); defaults", defmt::Debug2Format(&e));
+                match Controller::new(defaults) {
+                    Ok(c) => c,
+                    Err(_) => panic!("default controller settings invalid"),
+                }
+            }
+        };
+        control::install_controller(ctl);
+
+        // Drive output.
+        #[cfg(feature = "dac-drive")]
+        let drive = crate::firmware::drive::Drive::new(p.DAC1, p.PA4, p.PA5, p.TIM6, p.DMA1_CH1);
+        #[cfg(all(feature = "pwm-drive", not(feature = "dac-drive")))]
+        let drive = crate::firmware::drive::Drive::new(p.TIM1, p.PA8, p.PA9, p.DMA1_CH1);
+
+        // Sensors.
+        let enc = encoder::Encoder::new(p.TIM3, p.PA6, p.PA7);
+        let index = ExtiInput::new(p.PB10, p.EXTI10, Pull::Down);
+        let cell = preload::Preload::new(p.ADC1, p.PC0);
+
+        // UART on the ST-LINK virtual COM port.
+        let mut ucfg = usart::Config::default();
+        ucfg.baudrate = uart::BAUD;
+        let (Some(tx_buf), Some(rx_buf)) =
+            (cortex_m::singleton!(: [u8; 512] = [0; 512]), cortex_m::singleton!(: [u8; 256] = [0; 256]))
+        else {
+            panic!("uart buffers taken twice")
+        };
+        let serial = match BufferedUart::new(p.LPUART1, p.PA3, p.PA2, tx_buf, rx_buf, Irqs, ucfg) {
+            Ok(s) => s,
+            Err(_) => panic!("LPUART1 configuration refused"),
+        };
+
+        spawn(&spawner, "preload", spawner.spawn(preload::preload_task(cell)));
+        spawn(&spawner, "index", spawner.spawn(encoder::index_task(index)));
+        spawn(&spawner, "uart", spawner.spawn(uart::uart_task(serial)));
+        if let Some(flash) = flash {
+            spawn(&spawner, "flash", spawner.spawn(params_flash::flash_task(flash, defaults)));
+        } else {
+            defmt::warn!("flash in single-bank mode (DBANK=0): parameters not persistent");
+        }
+
+        // Give the preload filter a few samples before the loop starts.
+        Timer::after_millis(5).await;
+        control::start(p.TIM7, drive, enc, amp_enable);
+        let mut wdg = IndependentWatchdog::new(p.IWDG, safety::WATCHDOG_TIMEOUT_US);
+        wdg.unleash();
+        defmt::info!("control loop running at {} Hz", defaults::LOOP_HZ);
+
         loop {
-            led.toggle();
-            Timer::after_millis(500).await;
+            Timer::after_secs(10).await;
+            let s = control::loop_stats();
+            defmt::info!(
+                "ticks {} step cycles last {} max {} overruns {} servo-offs for overruns {}",
+                control::ticks(),
+                s.step_cycles_last,
+                s.step_cycles_max,
+                s.overruns,
+                control::OVERRUN_SERVO_OFFS.load(core::sync::atomic::Ordering::Relaxed)
+            );
+        }
+    }
+
+    fn spawn(_spawner: &Spawner, name: &str, r: Result<(), embassy_executor::SpawnError>) {
+        if r.is_err() {
+            defmt::error!("task {} not spawned", name);
         }
     }
 }

@@ -1,0 +1,169 @@
+//! Instruction counts of the control core's hot paths on a Cortex-M4F under QEMU (see
+//! Cargo.toml). Prints mean and largest instructions per call.
+#![no_std]
+#![no_main]
+
+use core::panic::PanicInfo;
+
+use cortex_m::peripheral::syst::SystClkSource;
+use cortex_m::peripheral::SYST;
+use cortex_m_rt::entry;
+use cortex_m_semihosting::{debug, hprintln};
+use piezo_drive::controller::{Controller, Inputs, DAC_SAMPLES_PER_STEP};
+use piezo_drive::defaults::controller_config;
+use piezo_drive::generator::QuadratureGenerator;
+use piezo_drive::Fx;
+
+/// SysTick counts of `f`, down-counter with a 24-bit reload.
+fn counts(f: impl FnOnce()) -> u32 {
+    let start = SYST::get_current();
+    f();
+    let end = SYST::get_current();
+    start.wrapping_sub(end) & 0x00FF_FFFF
+}
+
+struct Stat {
+    n: u32,
+    total: u64,
+    max: u32,
+}
+impl Stat {
+    fn new() -> Self {
+        Stat { n: 0, total: 0, max: 0 }
+    }
+    fn add(&mut self, c: u32) {
+        self.n += 1;
+        self.total += u64::from(c);
+        self.max = self.max.max(c);
+    }
+    fn print(&self, name: &str, insn_per_count: f32) {
+        let mean = self.total as f32 / self.n.max(1) as f32 * insn_per_count;
+        let max = self.max as f32 * insn_per_count;
+        hprintln!(
+            "{}: {} calls, mean {} instructions, max {} (±{} per call)",
+            name,
+            self.n,
+            mean as u32,
+            max as u32,
+            insn_per_count as u32
+        );
+    }
+}
+
+static mut HALF: [u32; 2 * DAC_SAMPLES_PER_STEP] = [0; 2 * DAC_SAMPLES_PER_STEP];
+
+#[entry]
+fn main() -> ! {
+    let mut cp = cortex_m::Peripherals::take().unwrap();
+    cp.SYST.set_clock_source(SystClkSource::Core);
+    cp.SYST.set_reload(0x00FF_FFFF);
+    cp.SYST.clear_current();
+    cp.SYST.enable_counter();
+
+    // Calibration: cortex_m::asm::delay(n) (cortex-m 0.7.10) runs a 2-instruction loop
+    // (`subs`, `bne`) n + 1 times. With `-icount shift=0` this should come out at 40 instructions
+    // per count (1 ns per instruction, SysTick on the 25 MHz system clock).
+    const CAL: u32 = 4_000_000;
+    let cal = counts(|| cortex_m::asm::delay(CAL));
+    let k = 2.0 * (CAL + 1) as f32 / cal as f32;
+    hprintln!(
+        "calibration: {} SysTick counts for {} instructions -> {} instructions per count",
+        cal,
+        2 * (CAL + 1),
+        k
+    );
+
+    // The drive refill alone: 20 generator samples at full amplitude, packed and stored.
+    let cfg = controller_config();
+    let mut g = QuadratureGenerator::new(cfg.dac);
+    g.set_frequency_hz(2200.0);
+    g.set_amplitude_v(100.0);
+    let mut fill = Stat::new();
+    let mut samples = [[0u16; 2]; DAC_SAMPLES_PER_STEP];
+    for i in 0..20_000u32 {
+        let half = (i & 1) as usize * DAC_SAMPLES_PER_STEP;
+        let c = counts(|| {
+            g.fill(&mut samples);
+            for (j, s) in samples.iter().enumerate() {
+                let w = u32::from(s[0].min(4095)) | (u32::from(s[1].min(4095)) << 16);
+                // SAFETY: in bounds, single-threaded.
+                unsafe { core::ptr::addr_of_mut!(HALF).cast::<u32>().add(half + j).write_volatile(w) };
+            }
+        });
+        fill.add(c);
+    }
+    fill.print("refill (generator.fill of 20 sample pairs + pack + store)", k);
+
+    // Controller step: a 1 mm move at 16 N preload with the encoder following the reference,
+    // then holding.
+    let mut ctl = Controller::new(cfg).unwrap();
+    let preload_word = (16.0 / cfg.preload.newton_per_word) as u16;
+    let mut inputs = Inputs { encoder_raw: 0, preload_word, index: false };
+    let mut idle = Stat::new();
+    for _ in 0..2_000 {
+        idle.add(counts(|| {
+            core::hint::black_box(ctl.step(core::hint::black_box(&inputs)));
+        }));
+    }
+    idle.print("Controller::step while idle (servo off)", k);
+    ctl.set_servo(true).unwrap();
+    ctl.move_to(1_000_000).unwrap();
+    let mut moving = Stat::new();
+    let mut holding = Stat::new();
+    for _ in 0..8_000u32 {
+        inputs.encoder_raw = (ctl.reference_nm() / 50) as u16;
+        let was_moving = matches!(ctl.state(), piezo_drive::controller::State::Moving);
+        let c = counts(|| {
+            core::hint::black_box(ctl.step(core::hint::black_box(&inputs)));
+        });
+        if was_moving {
+            moving.add(c);
+        } else {
+            holding.add(c);
+        }
+    }
+    moving.print("Controller::step while moving (1 mm at 16 N)", k);
+    holding.print("Controller::step while holding", k);
+    hprintln!("final state {:?}, position {} nm", ctl.state(), ctl.position_nm());
+
+    // Pieces of the step, through the core's public API (model at 16 N, 100 V, 2.2 kHz).
+    let mut limits = Stat::new();
+    let mut inverse = Stat::new();
+    let mut speed = Stat::new();
+    let mut thrust = Stat::new();
+    let m = cfg.motor;
+    let (p16, v100, f22) = (Fx::from_num(16), Fx::from_num(100), Fx::from_num(2.2));
+    for i in 0..500i32 {
+        let v = Fx::from_num(10 + i % 80);
+        limits.add(counts(|| {
+            core::hint::black_box(core::hint::black_box(&ctl).thrust_limits());
+        }));
+        inverse.add(counts(|| {
+            core::hint::black_box(m.voltage_for(p16, f22, v, Fx::from_num(1), v100));
+        }));
+        let point = m.point(p16, v100, f22);
+        speed.add(counts(|| {
+            core::hint::black_box(core::hint::black_box(&point).speed_at_load_mm_s(Fx::ZERO));
+        }));
+        thrust.add(counts(|| {
+            core::hint::black_box(core::hint::black_box(&point).thrust_n(v));
+        }));
+    }
+    limits.print("Controller::thrust_limits (per call; the step calls it while active)", k);
+    inverse.print("MotorConstants::voltage_for (inverse model, 16-step bisection)", k);
+    speed.print("ThrustPoint::speed_at_load_mm_s (20-step bisection)", k);
+    thrust.print("ThrustPoint::thrust_n (one model evaluation)", k);
+    debug::exit(debug::EXIT_SUCCESS);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[panic_handler]
+fn panic(info: &PanicInfo) -> ! {
+    hprintln!("panic: {}", info);
+    debug::exit(debug::EXIT_FAILURE);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
