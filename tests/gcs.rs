@@ -492,7 +492,7 @@ fn parameters_spa_hpa_wpa() {
     // SPA? without arguments lists every parameter, one line each.
     let all = String::from_utf8(rig.send(b"SPA?\n")).unwrap();
     assert_eq!(all.lines().count(), PARAMS.len());
-    assert!(all.starts_with("1 0x1=60 \n1 0x2=0.0002 \n"), "{all}");
+    assert!(all.starts_with("1 0x1=60 \n1 0x2=0.001 \n"), "{all}");
 }
 
 #[test]
