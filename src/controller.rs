@@ -9,7 +9,7 @@
 //! fault; only [`Controller::clear_fault`] leaves it.
 
 use crate::generator::{DacConfig, QuadratureGenerator};
-use crate::model::MotorConstants;
+use crate::model::{MotorConstants, PerVolt, ThrustPoint};
 use crate::profile::Profile;
 use crate::sensors::{Encoder, PreloadCalibration, PreloadCell};
 use crate::Fx;
@@ -171,8 +171,45 @@ enum Mode {
     Fine,
 }
 
+/// The thrust model at full drive and the measured preload, kept between periods. On the
+/// Cortex-M4 a model point costs about a thousand instructions and a speed-at-load root several
+/// thousand, while preload and load estimate change slowly: the point is rebuilt when the
+/// filtered preload moves by more than [`PRELOAD_RESOLVE_N`], the no-load speed and the speed
+/// limit are refreshed on alternate ticks of an 8-period cycle (0.8 ms at 10 kHz).
+#[derive(Debug, Clone, Copy)]
+struct ModelCache {
+    per_volt: PerVolt,
+    full: Option<ThrustPoint>,
+    preload_n: f32,
+    stall_n: f32,
+    /// No-load speed at full drive (mm/s); NaN until computed for this point.
+    no_load_mm_s: f32,
+    /// Speed at full drive against the estimated load in the direction of travel (mm/s).
+    speed_limit_mm_s: f32,
+    tick: u32,
+}
+
+/// Preload change (N) that rebuilds the cached model point: the model's limits change by well
+/// under 1 % over it, and the force cell's filtered noise stays below it.
+const PRELOAD_RESOLVE_N: f32 = 0.02;
+
+impl ModelCache {
+    fn new(cfg: &ControllerConfig) -> Self {
+        ModelCache {
+            per_volt: cfg.motor.at_frequency(Fx::saturating_from_num(cfg.drive_freq_hz / 1000.0)),
+            full: None,
+            preload_n: 0.0,
+            stall_n: 0.0,
+            no_load_mm_s: f32::NAN,
+            speed_limit_mm_s: f32::NAN,
+            tick: 0,
+        }
+    }
+}
+
 pub struct Controller {
     cfg: ControllerConfig,
+    model: ModelCache,
     generator: QuadratureGenerator,
     encoder: Option<Encoder>,
     preload: PreloadCell,
@@ -262,6 +299,7 @@ impl Controller {
             fine_rate_v_s: 0.0,
             fine_settle: 0,
             observed_bias_n: cfg.expected_load_n,
+            model: ModelCache::new(&cfg),
             prev_speed_nm_s: 0.0,
             decel_nm_s2: 1.0,
             reference_dir: -1,
@@ -367,6 +405,7 @@ impl Controller {
             self.preload = PreloadCell::new(cfg.preload);
         }
         self.cfg = cfg;
+        self.model = ModelCache::new(&self.cfg);
         Ok(())
     }
 
@@ -376,19 +415,62 @@ impl Controller {
     }
 
     /// Fixed-point model at the measured preload and the given drive.
-    fn model_point(&self, volts: f32) -> Option<crate::model::ThrustPoint> {
+    fn model_point(&self, volts: f32) -> Option<ThrustPoint> {
         let preload = self.preload_n()?;
-        Some(self.cfg.motor.point(
-            Fx::saturating_from_num(preload),
-            Fx::saturating_from_num(volts),
-            Fx::saturating_from_num(self.cfg.drive_freq_hz / 1000.0),
-        ))
+        Some(self.model.per_volt.point(Fx::saturating_from_num(preload), Fx::saturating_from_num(volts)))
     }
 
     /// Stall force (N) and no-load speed (mm/s) at full drive and the measured preload.
     pub fn thrust_limits(&self) -> Option<(f32, f32)> {
+        let preload = self.preload_n()?;
+        let m = &self.model;
+        if m.full.is_some()
+            && (preload - m.preload_n).abs() <= PRELOAD_RESOLVE_N
+            && m.no_load_mm_s.is_finite()
+        {
+            return Some((m.stall_n, m.no_load_mm_s));
+        }
         let p = self.model_point(self.cfg.max_drive_v)?;
         Some((p.stall_force_n().to_num(), p.no_load_speed_mm_s().to_num()))
+    }
+
+    /// The cached limits for the control path: (stall N, no-load mm/s), None without a preload.
+    fn cached_limits(&self) -> Option<(f32, f32)> {
+        self.model.full.map(|_| (self.model.stall_n, self.model.no_load_mm_s))
+    }
+
+    /// Keeps [`ModelCache`] current: at most one expensive root per period.
+    fn refresh_model(&mut self) {
+        let Some(preload) = self.preload_n() else {
+            self.model.full = None;
+            return;
+        };
+        let m = &mut self.model;
+        m.tick = m.tick.wrapping_add(1);
+        let fresh = m.full.is_none();
+        if fresh || (preload - m.preload_n).abs() > PRELOAD_RESOLVE_N {
+            let p = m
+                .per_volt
+                .point(Fx::saturating_from_num(preload), Fx::saturating_from_num(self.cfg.max_drive_v));
+            m.full = Some(p);
+            m.preload_n = preload;
+            m.stall_n = p.stall_force_n().to_num();
+            if fresh {
+                m.no_load_mm_s = p.no_load_speed_mm_s().to_num();
+                m.speed_limit_mm_s = m.no_load_mm_s;
+                return;
+            }
+        }
+        let Some(p) = m.full else { return };
+        match m.tick % 8 {
+            0 => m.no_load_mm_s = p.no_load_speed_mm_s().to_num(),
+            4 => {
+                let dir = if self.profile.target_nm() >= self.profile.position_nm() { 1.0 } else { -1.0 };
+                let load = (dir * self.thrust_bias_n).max(0.0);
+                m.speed_limit_mm_s = p.speed_at_load_mm_s(Fx::saturating_from_num(load)).to_num();
+            }
+            _ => {}
+        }
     }
 
     fn check_preload(&self) -> Result<f32, CommandError> {
@@ -589,11 +671,10 @@ impl Controller {
     /// Highest profile speed: the model's speed at full drive against the estimated load in the
     /// direction of travel, with margin.
     fn speed_limit_nm_s(&self) -> f32 {
-        let Some(p) = self.model_point(self.cfg.max_drive_v) else { return 0.0 };
-        let dir = if self.profile.target_nm() >= self.profile.position_nm() { 1.0 } else { -1.0 };
-        let load = (dir * self.thrust_bias_n).max(0.0);
-        let v: f32 = p.speed_at_load_mm_s(Fx::saturating_from_num(load)).to_num();
-        (v * 1e6 * self.cfg.speed_fraction).min(self.cfg.velocity_max_nm_s)
+        if self.model.full.is_none() || !self.model.speed_limit_mm_s.is_finite() {
+            return 0.0;
+        }
+        (self.model.speed_limit_mm_s * 1e6 * self.cfg.speed_fraction).min(self.cfg.velocity_max_nm_s)
     }
 
     /// Braking limit: the model's (below) within the user's deceleration limit.
@@ -604,7 +685,7 @@ impl Controller {
     /// The model's braking: reverse drive at full voltage brakes with at least the stall force.
     fn model_brake_nm_s2(&self) -> f32 {
         let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>().max(1e-3);
-        let stall = self.thrust_limits().map_or(0.0, |(f, _)| f);
+        let stall = self.cached_limits().map_or(0.0, |(f, _)| f);
         // Leave the load estimate's share of the thrust for the load.
         let usable = (stall - self.thrust_bias_n.abs()).max(0.3 * stall);
         usable / mass * 1e9 * self.cfg.accel_fraction
@@ -615,11 +696,11 @@ impl Controller {
     /// cannot deliver at the measured preload.
     fn speedup_limit_nm_s2(&self) -> f32 {
         let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>().max(1e-3);
-        let Some(p) = self.model_point(self.cfg.max_drive_v) else { return 0.0 };
+        let Some(p) = self.model.full else { return 0.0 };
         let v = self.profile.velocity_nm_s();
         let thrust: f32 = p.thrust_n(Fx::saturating_from_num(v.abs() * 1e-6)).to_num();
         let load = v.signum() * self.thrust_bias_n;
-        let stall: f32 = p.stall_force_n().to_num();
+        let stall = self.model.stall_n;
         let usable = (thrust - load.max(0.0)).max(0.05 * stall);
         (usable / mass * 1e9 * self.cfg.accel_fraction).min(self.cfg.accel_max_nm_s2)
     }
@@ -663,6 +744,7 @@ impl Controller {
 
     fn sense(&mut self, inputs: &Inputs) {
         self.preload.update(inputs.preload_word);
+        self.refresh_model();
         self.prev_speed_nm_s = self.speed_nm_s;
         match self.encoder.as_mut() {
             None => {
@@ -711,7 +793,7 @@ impl Controller {
         // (commanded foot speed against encoder speed).
         let dir = f32::from(self.generator.direction());
         let driving = self.mode == Mode::Coarse && self.drive_v > 0.5 * self.cfg.max_drive_v;
-        let foot_speed = self.thrust_limits().map_or(0.0, |(_, v0)| v0 * 1e6);
+        let foot_speed = self.cached_limits().map_or(0.0, |(_, v0)| v0 * 1e6);
         if driving && dir * self.speed_nm_s < 0.1 * foot_speed {
             // Sliding backwards under full drive is the clearest sign: count it five times faster.
             let backwards = dir * self.speed_nm_s < -0.1 * foot_speed;
@@ -848,7 +930,7 @@ impl Controller {
             v_cmd = err_nm.signum() * v_cmd.abs().max(self.cfg.approach_speed_nm_s);
         }
         let mut dir: i8 = if v_cmd >= 0.0 { 1 } else { -1 };
-        let stall = self.thrust_limits().map_or(0.0, |(stall, _)| stall);
+        let stall = self.cached_limits().map_or(0.0, |(stall, _)| stall);
         let volts = if self.cfg.feedforward {
             // Load observer (the thrust model run forwards): what the applied drive pushes at the
             // measured speed, less what accelerated the mass, is what the load took.
@@ -871,12 +953,12 @@ impl Controller {
             // Inertia of the profile's acceleration is part of the load (F = M·a).
             let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>();
             let load_along = f32::from(dir) * (self.thrust_bias_n + mass * self.accel_ref_nm_s2 * 1e-9);
-            let p = self.cfg.motor.voltage_for(
+            let p = self.model.per_volt.voltage_near(
                 Fx::saturating_from_num(self.preload.force_n()),
-                Fx::saturating_from_num(self.cfg.drive_freq_hz / 1000.0),
                 Fx::saturating_from_num(v_cmd.abs() * 1e-6),
                 Fx::saturating_from_num(load_along),
                 Fx::saturating_from_num(self.cfg.max_drive_v),
+                self.drive_v,
             );
             p.to_num::<f32>()
         } else {

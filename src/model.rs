@@ -64,8 +64,9 @@ pub fn contact_angle(preload_n: Fx, kc_yc_n: Fx) -> Fx {
     if kc_yc_n <= preload_n {
         return Fx::TAU;
     }
-    let ratio = preload_n.checked_div(kc_yc_n).unwrap_or(Fx::ONE);
-    let r = ratio.to_bits();
+    // Here 0 < preload < kc·Yc, so the ratio is in (0, 1). Divisions go through the FPU (one
+    // instruction on the Cortex-M4F) instead of a 64-bit software divide.
+    let r = ((preload_n.to_bits() as f32 / kc_yc_n.to_bits() as f32) * 65536.0) as i32;
     // Largest k with g(θk) ≤ ratio (the table rises from 0 to 1).
     let (mut lo, mut hi) = (0usize, 256usize);
     while hi - lo > 1 {
@@ -79,7 +80,7 @@ pub fn contact_angle(preload_n: Fx, kc_yc_n: Fx) -> Fx {
     let g0 = i64::from(MEAN_CONTACT_Q16.get(lo).copied().unwrap_or(0));
     let g1 = i64::from(MEAN_CONTACT_Q16.get(hi).copied().unwrap_or(65536));
     let step_q16 = i64::from(Fx::TAU.to_bits()) / 256;
-    let frac = if g1 > g0 { ((i64::from(r) - g0) << 16) / (g1 - g0) } else { 0 };
+    let frac = if g1 > g0 { ((i64::from(r) - g0) as f32 / (g1 - g0) as f32 * 65536.0) as i64 } else { 0 };
     let theta = (lo as i64) * step_q16 + ((frac.clamp(0, 1 << 16) * step_q16) >> 16);
     Fx::from_bits(theta as i32)
 }
@@ -130,52 +131,110 @@ impl PerVolt {
             self.viscous_un_per_mm_s,
         )
     }
+
+    /// Inverse model (the feedforward): the drive voltage (peak-to-peak, within `max_v`) at which
+    /// the motor runs at `speed_mm_s` against `load_n` (opposing; negative = assisting). Returns
+    /// `max_v` when even that is not enough. Thrust rises with voltage; the root is found to
+    /// 0.01 V (a DAC word is 0.024 V at 100 V full scale), never below it.
+    pub fn voltage_for(&self, preload_n: Fx, speed_mm_s: Fx, load_n: Fx, max_v: Fx) -> Fx {
+        self.voltage_near(preload_n, speed_mm_s, load_n, max_v, max_v.to_num::<f32>() * 0.5)
+    }
+
+    /// [`Self::voltage_for`] searched first within 5 V of `hint_v` (e.g. the last period's
+    /// answer): a control loop's feedforward moves little from one period to the next, and a
+    /// narrow first bracket saves half the model evaluations.
+    pub fn voltage_near(&self, preload_n: Fx, speed_mm_s: Fx, load_n: Fx, max_v: Fx, hint_v: f32) -> Fx {
+        const SPAN_V: f32 = 5.0;
+        let load: f32 = load_n.to_num();
+        // Falling in voltage: load − thrust(v).
+        let excess = |v: f32| {
+            load - self.point(preload_n, Fx::saturating_from_num(v)).thrust_n(speed_mm_s).to_num::<f32>()
+        };
+        let top: f32 = max_v.max(Fx::ZERO).to_num();
+        let h = if hint_v.is_finite() { hint_v.clamp(0.0, top) } else { 0.5 * top };
+        let eh = excess(h);
+        let bracket = if eh > 0.0 {
+            let up = (h + SPAN_V).min(top);
+            let eu = excess(up);
+            if eu <= 0.0 {
+                Bracket { a: h, fa: eh, b: up, fb: eu }
+            } else {
+                let et = if up < top { excess(top) } else { eu };
+                if et > 0.0 {
+                    return max_v;
+                }
+                Bracket { a: up, fa: eu, b: top, fb: et }
+            }
+        } else {
+            let down = (h - SPAN_V).max(0.0);
+            let ed = excess(down);
+            if ed > 0.0 {
+                Bracket { a: down, fa: ed, b: h, fb: eh }
+            } else {
+                let e0 = if down > 0.0 { excess(0.0) } else { ed };
+                if e0 <= 0.0 {
+                    return Fx::ZERO;
+                }
+                Bracket { a: 0.0, fa: e0, b: down, fb: ed }
+            }
+        };
+        // The upper side of the final bracket: thrust reaches the load there.
+        let k = falling_root(excess, bracket, 0.01, 1e-4, 12);
+        Fx::saturating_from_num(k.b).min(max_v)
+    }
 }
 
-/// Root of a decreasing `f` on [lo, hi] with f(lo) > 0 ≥ f(hi), by false position with the
-/// Illinois modification: superlinear, so a handful of model evaluations replace a 16–20 step
-/// bisection. Stops when the bracket is below `tol`, when |f| < `ftol`, or after `max_evals`;
-/// returns the end of the bracket on the positive side (never past the root, up to `ftol`).
-fn falling_root(mut f: impl FnMut(f32) -> f32, lo: f32, hi: f32, tol: f32, ftol: f32, max_evals: u32) -> f32 {
-    let (mut a, mut fa) = (lo, f(lo));
-    let (mut b, mut fb) = (hi, f(hi));
-    if fa <= 0.0 {
-        return lo;
-    }
-    if fb > 0.0 {
-        return hi;
-    }
+/// A bracket of a decreasing function: f(a) > 0 ≥ f(b).
+#[derive(Clone, Copy)]
+struct Bracket {
+    a: f32,
+    fa: f32,
+    b: f32,
+    fb: f32,
+}
+
+/// Root of a decreasing `f` inside a bracket, by false position with the Illinois modification:
+/// superlinear, so a handful of model evaluations replace a 16–20 step bisection. Stops when the
+/// bracket is narrower than `tol`, when |f| < `ftol` (then a = b = that point), or after
+/// `max_evals`; returns the final bracket.
+fn falling_root(
+    mut f: impl FnMut(f32) -> f32,
+    mut k: Bracket,
+    tol: f32,
+    ftol: f32,
+    max_evals: u32,
+) -> Bracket {
     let mut side = 0i8;
     for _ in 0..max_evals {
-        if b - a <= tol {
+        if k.b - k.a <= tol {
             break;
         }
-        let span = fa - fb;
-        let mut c = if span > 0.0 { a + fa * (b - a) / span } else { 0.5 * (a + b) };
+        let span = k.fa - k.fb;
+        let mut c = if span > 0.0 { k.a + k.fa * (k.b - k.a) / span } else { 0.5 * (k.a + k.b) };
         // Keep strictly inside so the bracket always shrinks.
-        let margin = 0.01 * (b - a);
-        c = c.clamp(a + margin, b - margin);
+        let margin = 0.01 * (k.b - k.a);
+        c = c.clamp(k.a + margin, k.b - margin);
         let fc = f(c);
         if fc.abs() < ftol {
-            return c;
+            return Bracket { a: c, fa: fc, b: c, fb: fc };
         }
         if fc > 0.0 {
-            a = c;
-            fa = fc;
+            k.a = c;
+            k.fa = fc;
             if side == 1 {
-                fb *= 0.5;
+                k.fb *= 0.5;
             }
             side = 1;
         } else {
-            b = c;
-            fb = fc;
+            k.b = c;
+            k.fb = fc;
             if side == -1 {
-                fa *= 0.5;
+                k.fa *= 0.5;
             }
             side = -1;
         }
     }
-    a
+    k
 }
 
 impl MotorConstants {
@@ -212,29 +271,9 @@ impl MotorConstants {
         self.per_volt(&self.kc_yc_n_per_v, freq_khz).saturating_mul(voltage_v)
     }
 
-    /// Inverse model (the feedforward): the drive voltage (peak-to-peak, within `max_v`) at which
-    /// the motor runs at `speed_mm_s` against `load_n` (opposing; negative = assisting). Returns
-    /// `max_v` when even that is not enough. Thrust rises with voltage; the root is found to
-    /// 0.01 V (a hundredth of a DAC word's worth at 100 V full scale is 0.0024 V per word).
+    /// Inverse model at a drive frequency (see [`PerVolt::voltage_for`]).
     pub fn voltage_for(&self, preload_n: Fx, freq_khz: Fx, speed_mm_s: Fx, load_n: Fx, max_v: Fx) -> Fx {
-        let per_volt = self.at_frequency(freq_khz);
-        let load: f32 = load_n.to_num();
-        // Falling in voltage: load − thrust(v).
-        let excess = |v: f32| {
-            load - per_volt.point(preload_n, Fx::saturating_from_num(v)).thrust_n(speed_mm_s).to_num::<f32>()
-        };
-        let top: f32 = max_v.max(Fx::ZERO).to_num();
-        if excess(top) >= 0.0 {
-            return max_v;
-        }
-        // The smallest voltage whose thrust reaches the load: the root's upper side.
-        let below = falling_root(excess, 0.0, top, 0.01, 1e-4, 12);
-        let v = Fx::saturating_from_num(below + 0.01).min(max_v);
-        if excess(v.to_num()) < 0.0 {
-            v
-        } else {
-            Fx::saturating_from_num(below + 0.02).min(max_v)
-        }
+        self.at_frequency(freq_khz).voltage_for(preload_n, speed_mm_s, load_n, max_v)
     }
 }
 
@@ -248,7 +287,8 @@ impl ThrustPoint {
         let contact_angle_rad = contact_angle(preload_n, kc_yc_n);
         let half = contact_angle_rad / 2;
         let cos_half = cos(half);
-        let w_bits = i64::from(foot_speed_mm_s.to_bits());
+        let sin_half = sin(half);
+        let w_bits = foot_speed_mm_s.to_bits();
         ThrustPoint {
             preload_n,
             kc_yc_n,
@@ -256,11 +296,16 @@ impl ThrustPoint {
             foot_speed_mm_s,
             mu,
             viscous_un_per_mm_s,
-            inv_foot_speed_q32: if w_bits > 0 { (1i64 << 48) / w_bits } else { 0 },
+            // 2⁴⁸/w through the FPU: 24 significant bits are plenty for a speed ratio.
+            inv_foot_speed_q32: if w_bits > 0 {
+                (281_474_976_710_656.0f32 / w_bits as f32) as i64
+            } else {
+                0
+            },
             half_angle_rad: half,
             cos_half,
-            arc_half: arc(half, cos_half),
-            viscous_sweep_mm_s: foot_speed_mm_s.saturating_mul(sin(half)).saturating_mul_int(2),
+            arc_half: sin_half - cos_half * half,
+            viscous_sweep_mm_s: foot_speed_mm_s.saturating_mul(sin_half).saturating_mul_int(2),
         }
     }
 
@@ -312,12 +357,20 @@ impl ThrustPoint {
     /// Forward speed at which the thrust equals an opposing `load_n` (0 when the load stalls it),
     /// to 0.001 mm/s. Thrust falls with speed between standstill and the foot's peak speed.
     pub fn speed_at_load_mm_s(&self, load_n: Fx) -> Fx {
-        if self.stall_force_n() <= load_n {
+        let stall = self.stall_force_n();
+        if stall <= load_n {
             return Fx::ZERO;
         }
         let load: f32 = load_n.to_num();
         let excess = |v: f32| self.thrust_n(Fx::saturating_from_num(v)).to_num::<f32>() - load;
         let top: f32 = self.foot_speed_mm_s.to_num();
-        Fx::saturating_from_num(falling_root(excess, 0.0, top, 0.001, 1e-4, 12))
+        let (f0, ftop) = ((stall - load_n).to_num::<f32>(), excess(top));
+        if ftop > 0.0 {
+            // An assisting load: faster than the foot itself.
+            return self.foot_speed_mm_s;
+        }
+        let k = falling_root(excess, Bracket { a: 0.0, fa: f0, b: top, fb: ftop }, 0.001, 1e-4, 12);
+        // The lower side: the motor surely makes this speed.
+        Fx::saturating_from_num(k.a)
     }
 }
