@@ -69,6 +69,10 @@ enum Command {
         #[arg(long, value_name = "FILE.svg", default_value = "demo.svg")]
         plot: PathBuf,
     },
+    /// Model-gap workflow: calibrate to measured speeds, name the missing effects, report.
+    Gap(host_sim::gap::GapArgs),
+    /// Synthetic measured data from the plant with hidden effects (the gap workflow's input).
+    Measure(host_sim::measure::MeasureArgs),
 }
 
 #[derive(clap::Args)]
@@ -244,6 +248,8 @@ fn run(cli: Cli) -> Result<()> {
                 }
             }
         }
+        Command::Gap(args) => host_sim::gap::run(args, &params)?,
+        Command::Measure(args) => host_sim::measure::run(args, &params)?,
         Command::Demo { plot: plot_path } => {
             println!("Shaking-beam piezo motor, closed loop: the firmware's controller against the plant");
             let (rows, trace) = moves::demo(&params, |label| eprintln!("demo: {label}..."))?;
