@@ -38,7 +38,8 @@ pub struct Options {
     pub min_delta_bic: f64,
     /// Minimum relative improvement of the cross-validated RMS.
     pub min_cv_improvement: f64,
-    /// ΔBIC margin within which candidates form an ambiguity group.
+    /// ΔBIC margin within which candidates form an ambiguity group (candidates whose refits both
+    /// leave residuals consistent with noise are grouped whatever their ΔBIC).
     pub ambiguity_bic: f64,
     /// Which effects the library offers (default: all).
     pub library: Vec<&'static str>,
@@ -80,6 +81,8 @@ pub struct Candidate {
     pub cv_improvement: f64,
     /// Gap (RMS/mean) of the refit.
     pub gap: f64,
+    /// Residual variance / noise variance of the refit (below the threshold: explains the data).
+    pub consistency: f64,
     pub accepted: bool,
     pub params: Vec<NamedParam>,
     #[serde(skip)]
@@ -465,6 +468,7 @@ pub fn analyze(
                     delta_bic: lr - k * (n as f64).ln(),
                     cv_improvement: 1.0 - cv_with / cv_without.max(1e-300),
                     gap: data.gap(&pred),
+                    consistency: ratio(&f, n, m.n_params(), state.s),
                     accepted: false,
                     params: effect_named_params(&m, &f, name, state.s),
                     fit_x: f.x.clone(),
@@ -490,7 +494,11 @@ pub fn analyze(
         let group: Vec<usize> = eligible
             .iter()
             .copied()
-            .filter(|&i| cands[best].delta_bic - cands[i].delta_bic < opts.ambiguity_bic)
+            .filter(|&i| {
+                cands[best].delta_bic - cands[i].delta_bic < opts.ambiguity_bic
+                    || (cands[best].consistency < opts.consistent_ratio
+                        && cands[i].consistency < opts.consistent_ratio)
+            })
             .collect();
         if group.len() > 1 {
             let members: Vec<&Candidate> = group.iter().map(|&i| &cands[i]).collect();

@@ -99,7 +99,7 @@ pub fn markdown(r: &GapReport, measured: &Path) -> String {
         s,
         "\n## Candidates\n\nScore: Rao score χ² of each effect at zero strength after projecting out the \
          current parameters; LR and ΔBIC from the refit; CV: relative improvement of the held-out RMS \
-         (5 folds of operating curves).\n"
+         (5 folds of operating curves); R: residual/noise variance of the refit.\n"
     );
     let _ = writeln!(
         s,
@@ -109,7 +109,7 @@ pub fn markdown(r: &GapReport, measured: &Path) -> String {
     for c in &r.candidates {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} % | {:.4} | {} | {} |",
+            "| {} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} % | {:.4} | {:.2} | {} | {} |",
             c.round,
             c.name,
             c.score,
@@ -118,6 +118,7 @@ pub fn markdown(r: &GapReport, measured: &Path) -> String {
             c.delta_bic,
             100.0 * c.cv_improvement,
             c.gap,
+            c.consistency,
             if c.accepted { "**yes**" } else { "no" },
             fmt_params(c)
         );
