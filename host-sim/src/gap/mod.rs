@@ -513,12 +513,10 @@ pub fn analyze(
         let name = leak(&cands[best].name);
         let mut model = state.model.clone();
         model.effects.push(name);
-        let fit = lm_fit(&model, &data, &all, &[cands[best].fit_x.clone()], 40);
+        let mut fit = lm_fit(&model, &data, &all, &[cands[best].fit_x.clone()], 40);
         candidates_out.extend(cands);
         // Re-test earlier effects: drop each and refit; remove it if it no longer pays its way.
         let mut changed = true;
-        let mut model = model;
-        let mut fit = fit;
         while changed {
             changed = false;
             for e in model.effects.clone() {
