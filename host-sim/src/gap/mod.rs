@@ -112,6 +112,13 @@ pub struct Ambiguity {
     pub separating_experiment: Option<Experiment>,
 }
 
+/// A named effect with its parameters from the final refit (all accepted effects together).
+#[derive(Debug, Clone, Serialize)]
+pub struct FinalEffect {
+    pub name: String,
+    pub params: Vec<NamedParam>,
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct Removed {
     pub name: String,
@@ -133,6 +140,8 @@ pub struct GapReport {
     pub gap_before: f64,
     pub gap_after: f64,
     pub named_effects: Vec<String>,
+    /// The named effects' parameters from the final fit (with one-sigma uncertainties).
+    pub final_effects: Vec<FinalEffect>,
     pub candidates: Vec<Candidate>,
     pub ambiguity: Vec<Ambiguity>,
     pub removed: Vec<Removed>,
@@ -550,10 +559,13 @@ pub fn analyze(
     let pred_after = state.model.predict(&state.fit.x, &data, &all);
     let gap_after = data.gap(&pred_after);
     let mut fitted = state.model.params_at(&state.fit.x);
+    let mut final_effects = Vec::new();
     for e in &state.model.effects {
-        for np in effect_named_params(&state.model, &state.fit, e, state.s) {
-            fitted.effects.std_dev.insert(np.name, np.std_dev);
+        let params = effect_named_params(&state.model, &state.fit, e, state.s);
+        for np in &params {
+            fitted.effects.std_dev.insert(np.name.clone(), np.std_dev);
         }
+        final_effects.push(FinalEffect { name: e.to_string(), params });
     }
     let mean_mm_s = data.mean_speed() * 1e3;
     Ok(GapReport {
@@ -561,6 +573,7 @@ pub fn analyze(
         gap_before,
         gap_after,
         named_effects: state.model.effects.iter().map(|e| e.to_string()).collect(),
+        final_effects,
         candidates: candidates_out,
         ambiguity,
         removed,
@@ -603,7 +616,9 @@ pub fn run(args: GapArgs, params: &Params) -> Result<()> {
     std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
     report::write_all(&report, &rows, params, &args.measured, &args.out)?;
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        use std::io::Write;
+        // A closed pipe (e.g. `| head`) is not an error of the workflow.
+        let _ = writeln!(std::io::stdout(), "{}", serde_json::to_string_pretty(&report)?);
     } else {
         report::print_summary(&report, &args.out);
     }

@@ -83,6 +83,13 @@ pub fn markdown(r: &GapReport, measured: &Path) -> String {
         );
     } else {
         let _ = writeln!(s, "**Named effects** (in the order accepted): {}\n", r.named_effects.join(", "));
+        let _ = writeln!(s, "| effect | parameter | final fit | ± 1σ |\n|---|---|---|---|");
+        for e in &r.final_effects {
+            for p in &e.params {
+                let _ = writeln!(s, "| {} | {} | {:.5} | {:.5} |", e.name, p.name, p.value, p.std_dev);
+            }
+        }
+        let _ = writeln!(s);
     }
     let _ = writeln!(
         s,
@@ -103,9 +110,9 @@ pub fn markdown(r: &GapReport, measured: &Path) -> String {
     );
     let _ = writeln!(
         s,
-        "| round | effect | score | score rank | LR | ΔBIC | CV impr. | gap | accepted | parameters |"
+        "| round | effect | score | score rank | LR | ΔBIC | CV impr. | gap | R | accepted | parameters |"
     );
-    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
     for c in &r.candidates {
         let _ = writeln!(
             s,
@@ -168,6 +175,11 @@ pub fn print_summary(r: &GapReport, out: &Path) {
         println!("nothing missing: the base model explains the data to within noise");
     } else {
         println!("named effects: {}", r.named_effects.join(", "));
+        for e in &r.final_effects {
+            for p in &e.params {
+                println!("  {}.{} = {:.5} ± {:.5}", e.name, p.name, p.value, p.std_dev);
+            }
+        }
     }
     println!("gap after  {:.4} (residual/noise variance {:.2})", r.gap_after, r.consistency_after);
     println!(
