@@ -93,7 +93,11 @@ pub struct Plant {
     drive_off: bool,
     // Effects beyond the base model (crate::effects); all inactive in the base model.
     effects: Effects,
+    /// Sense of the foot's ellipse (+1/−1), inferred from the two stack voltages
+    /// (`assembly_asymmetry` only).
     drive_direction: i8,
+    /// Low-passed `e1·ė2 − e2·ė1` of the stack voltage deviations: its sign is the drive sense.
+    sense_lp: f64,
     preload_setting_n: f64,
     /// `amplifier_rolloff`: output of the extra pole per channel (deviation from mid-range, V).
     rolloff_v: [f64; 2],
@@ -221,6 +225,7 @@ impl Plant {
             drive_off: false,
             effects: p.effects.clone(),
             drive_direction: 1,
+            sense_lp: 0.0,
             preload_setting_n: preload_n,
             rolloff_v: [0.0; 2],
             rolloff_decay: 0.0,
@@ -294,9 +299,10 @@ impl Plant {
         self.anchor_m += (preload_n - now) / self.p.stator.preload_spring_n_per_m;
         self.preload_setting_n = preload_n;
     }
-    /// Drive sense the stator is run in (+1 or −1); only `assembly_asymmetry` depends on it.
-    pub fn set_drive_direction(&mut self, direction: i8) {
-        self.drive_direction = if direction < 0 { -1 } else { 1 };
+    /// Drive sense the plant currently sees (+1 or −1): the sense in which the stack voltages
+    /// turn (channel 2 lagging channel 1 is +1). Tracked only with `assembly_asymmetry`.
+    pub fn drive_direction(&self) -> i8 {
+        self.drive_direction
     }
     pub fn set_friction_model(&mut self, model: FrictionModel) {
         self.friction_model = model;
@@ -404,6 +410,16 @@ impl Plant {
         let drive_n = s.normal_force_ratio * self.p.stack.stiffness_n_per_m * stroke * (mid_v[0] - mid_v[1]);
         let mut foot_speed = s.tangential_scale * stroke * (rate_v_s[0] + rate_v_s[1]);
         if self.effects.assembly_asymmetry.is_some() {
+            // The ellipse's sense: sign of e1·ė2 − e2·ė1 (+ when channel 2 lags), low-passed over
+            // ≈ 1 ms so offsets and ramps do not flip it; it is kept while the drive is idle.
+            let mid = self.p.amplifier_mid_v();
+            let cross = (mid_v[0] - mid) * rate_v_s[1] - (mid_v[1] - mid) * rate_v_s[0];
+            self.sense_lp += (cross - self.sense_lp) * (dt / 1e-3).min(1.0);
+            if self.sense_lp > 0.0 {
+                self.drive_direction = 1;
+            } else if self.sense_lp < 0.0 {
+                self.drive_direction = -1;
+            }
             foot_speed *= self.effects.tangential_factor(self.drive_direction);
         }
 
@@ -525,7 +541,6 @@ pub fn steady_speed_m_s(
     load_n: f64,
 ) -> f64 {
     let mut plant = Plant::new(p, preload_n);
-    plant.set_drive_direction(direction);
     plant.load = ExternalLoad::opposing(load_n, direction);
     let mut drive =
         QuadratureSine { voltage_v, frequency_hz, direction, mid_v: p.amplifier_mid_v(), ramp_s: 0.01 };
