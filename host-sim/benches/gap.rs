@@ -23,7 +23,7 @@ fn main() {
     base.stator.normal_force_ratio *= 1.1;
     let threads = rayon::current_num_threads();
     let t = Instant::now();
-    let r = analyze(&base, &rows, &Options::default(), &|_| {}).expect("workflow runs");
+    let r = analyze(&base, &rows, &Options::default(), &|_, _, _| {}).expect("workflow runs");
     let s = t.elapsed().as_secs_f64();
     println!(
         "gap workflow: {} rows, full library ({} effects), {threads} threads: {s:.2} s wall \

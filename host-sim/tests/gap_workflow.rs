@@ -19,7 +19,7 @@ fn perturbed(truth: &Params) -> Params {
 
 fn run(truth: &Params, grid: &Grid, noise_pct: f64, seed: u64) -> GapReport {
     let rows = synthesize(truth, grid, noise_pct, seed, &|| {});
-    analyze(&perturbed(truth), &rows, &Options::default(), &|_| {}).expect("workflow runs")
+    analyze(&perturbed(truth), &rows, &Options::default(), &|_, _, _| {}).expect("workflow runs")
 }
 
 fn fitted(r: &GapReport, effect: &str, param: &str) -> f64 {

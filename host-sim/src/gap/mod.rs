@@ -408,12 +408,15 @@ fn separating_experiment(group: &[&Candidate], model: &Model, data: &Data, s: f6
     best
 }
 
-/// The whole workflow on measured rows. `progress` receives a short label per stage.
+/// Progress of the workflow: a stage label and (done, total) steps within it.
+pub type ProgressFn<'a> = &'a (dyn Fn(&str, usize, usize) + Sync);
+
+/// The whole workflow on measured rows. `progress` is told each stage and step.
 pub fn analyze(
     base: &Params,
     rows: &[MeasuredRow],
     opts: &Options,
-    progress: &(dyn Fn(&str) + Sync),
+    progress: ProgressFn,
 ) -> Result<GapReport> {
     let t0 = std::time::Instant::now();
     let data = Data::from_rows(rows);
@@ -425,7 +428,7 @@ pub fn analyze(
         bail!("the mean measured speed must be positive (the gap is relative to it)");
     }
     let all = all_rows(&data);
-    progress("calibrating the base model");
+    progress("calibrating the base model", 0, 1);
     let base_model = Model { base: base.clone(), effects: Vec::new() };
     let base_fit = lm_fit(&base_model, &data, &all, &base_starts(BASE_PARAMS), 100);
     let (s0, m0) = data.noise_scale(&base_fit.resid);
@@ -448,12 +451,14 @@ pub fn analyze(
     let mut round = 0;
     while state.model.effects.len() < opts.max_effects && state.ratio >= opts.consistent_ratio {
         round += 1;
-        progress(&format!("round {round}: scoring and refitting candidates"));
         let todo: Vec<&'static str> =
             library.iter().copied().filter(|e| !state.model.effects.contains(e)).collect();
         if todo.is_empty() {
             break;
         }
+        let label = format!("round {round}: candidates scored and refitted");
+        progress(&label, 0, todo.len());
+        let done = std::sync::atomic::AtomicUsize::new(0);
         let cv_without = cv_rms(&state.model, &data, &state.fit.x, opts.folds);
         let mut cands: Vec<Candidate> = todo
             .par_iter()
@@ -467,7 +472,8 @@ pub fn analyze(
                 let lr = (state.fit.ssr - f.ssr) / (state.s * state.s);
                 let cv_with = cv_rms(&m, &data, &f.x, opts.folds);
                 let pred = m.predict(&f.x, &data, &all);
-                progress(&format!("round {round}: {name} refitted"));
+                let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                progress(&label, d, todo.len());
                 Candidate {
                     name: name.to_string(),
                     round,
@@ -605,13 +611,17 @@ pub struct GapArgs {
 
 pub fn run(args: GapArgs, params: &Params) -> Result<()> {
     let rows = crate::measured_csv::read(&args.measured)?;
-    let bar = indicatif::ProgressBar::new_spinner();
+    let bar = indicatif::ProgressBar::new(1);
     bar.set_style(
-        indicatif::ProgressStyle::with_template("gap {spinner} [{elapsed}] {msg}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+        indicatif::ProgressStyle::with_template("gap {spinner} [{elapsed}] {bar:30} {pos}/{len} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     bar.enable_steady_tick(std::time::Duration::from_millis(120));
-    let report = analyze(params, &rows, &Options::default(), &|msg: &str| bar.set_message(msg.to_string()))?;
+    let report = analyze(params, &rows, &Options::default(), &|msg: &str, done: usize, total: usize| {
+        bar.set_message(msg.to_string());
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })?;
     bar.finish_and_clear();
     std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
     report::write_all(&report, &rows, params, &args.measured, &args.out)?;
