@@ -119,6 +119,16 @@ pub struct FinalEffect {
     pub params: Vec<NamedParam>,
 }
 
+/// Residual structure against one condition: the spread of the mean weighted residual between
+/// the condition's levels, as χ² per degree of freedom in units of the noise (≈ 1: no structure).
+#[derive(Debug, Clone, Serialize)]
+pub struct Structure {
+    pub condition: String,
+    pub levels: usize,
+    pub chi2_per_dof_before: f64,
+    pub chi2_per_dof_after: f64,
+}
+
 #[derive(Debug, Clone, Serialize)]
 pub struct Removed {
     pub name: String,
@@ -144,6 +154,8 @@ pub struct GapReport {
     pub final_effects: Vec<FinalEffect>,
     pub candidates: Vec<Candidate>,
     pub ambiguity: Vec<Ambiguity>,
+    /// Residual structure by condition (preload, voltage, frequency, load level, direction).
+    pub residual_structure: Vec<Structure>,
     pub removed: Vec<Removed>,
     /// Noise estimate, mm/s at the mean speed (difference-based, base fit).
     pub noise_mm_s: f64,
@@ -408,6 +420,45 @@ fn separating_experiment(group: &[&Candidate], model: &Model, data: &Data, s: f6
     best
 }
 
+/// χ² per degree of freedom of the level means of the weighted residuals, per condition. The load
+/// level is a row's rank in load within its curve (the load fraction of a measured curve).
+fn structure(data: &Data, resid: &[f64], s: f64) -> Vec<(String, usize, f64)> {
+    let n = data.len();
+    let mut load_rank = vec![0i64; n];
+    for c in 0..data.n_curves {
+        let mut idx: Vec<usize> = (0..n).filter(|&i| data.curve[i] == c).collect();
+        idx.sort_by(|&a, &b| data.conds[a].load_n.total_cmp(&data.conds[b].load_n));
+        for (r, &i) in idx.iter().enumerate() {
+            load_rank[i] = r as i64;
+        }
+    }
+    let keys: [(&str, Box<dyn Fn(usize) -> i64>); 5] = [
+        ("preload", Box::new(|i| (data.conds[i].preload_n * 1e3).round() as i64)),
+        ("voltage", Box::new(|i| (data.conds[i].voltage_v * 1e3).round() as i64)),
+        ("frequency", Box::new(|i| (data.conds[i].frequency_hz * 1e3).round() as i64)),
+        ("load level", Box::new(|i| load_rank[i])),
+        ("direction", Box::new(|i| i64::from(data.conds[i].direction))),
+    ];
+    keys.iter()
+        .map(|(name, key)| {
+            let mut groups: Vec<(i64, usize, f64)> = Vec::new();
+            for (i, r) in resid.iter().enumerate().take(n) {
+                let k = key(i);
+                match groups.iter_mut().find(|g| g.0 == k) {
+                    Some(g) => {
+                        g.1 += 1;
+                        g.2 += r;
+                    }
+                    None => groups.push((k, 1, *r)),
+                }
+            }
+            let chi2: f64 = groups.iter().map(|g| g.2 * g.2 / g.1 as f64).sum::<f64>() / (s * s);
+            let dof = groups.len().saturating_sub(1).max(1);
+            (name.to_string(), groups.len(), chi2 / dof as f64)
+        })
+        .collect()
+}
+
 /// Progress of the workflow: a stage label and (done, total) steps within it.
 pub type ProgressFn<'a> = &'a (dyn Fn(&str, usize, usize) + Sync);
 
@@ -442,6 +493,7 @@ pub fn analyze(
     let gap_before = data.gap(&pred_before);
     let ratio0 = ratio(&base_fit, n, BASE_PARAMS, s0);
     let base_cal = base_calibration(&base_model, &base_fit, s0);
+    let structure_before = structure(&data, &base_fit.resid, s0);
     let mut state = State { model: base_model, fit: base_fit, s: s0, ratio: ratio0 };
     let mut candidates_out: Vec<Candidate> = Vec::new();
     let mut ambiguity = Vec::new();
@@ -574,6 +626,17 @@ pub fn analyze(
         final_effects.push(FinalEffect { name: e.to_string(), params });
     }
     let mean_mm_s = data.mean_speed() * 1e3;
+    let structure_after = structure(&data, &state.fit.resid, state.s);
+    let residual_structure = structure_before
+        .into_iter()
+        .zip(structure_after)
+        .map(|((condition, levels, before), (_, _, after))| Structure {
+            condition,
+            levels,
+            chi2_per_dof_before: before,
+            chi2_per_dof_after: after,
+        })
+        .collect();
     Ok(GapReport {
         rows: n,
         gap_before,
@@ -582,6 +645,7 @@ pub fn analyze(
         final_effects,
         candidates: candidates_out,
         ambiguity,
+        residual_structure,
         removed,
         noise_mm_s: s0 * (1.0 + fit::WEIGHT_FLOOR_OF_MEAN) * mean_mm_s,
         consistency_before: ratio0,

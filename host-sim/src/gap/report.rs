@@ -93,6 +93,20 @@ pub fn markdown(r: &GapReport, measured: &Path) -> String {
     }
     let _ = writeln!(
         s,
+        "## Residual structure\n\nSpread of the mean weighted residual between the levels of each condition, \
+         χ² per degree of freedom in units of the noise (≈ 1: no structure).\n\n\
+         | condition | levels | before | after |\n|---|---|---|---|"
+    );
+    for c in &r.residual_structure {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.1} | {:.1} |",
+            c.condition, c.levels, c.chi2_per_dof_before, c.chi2_per_dof_after
+        );
+    }
+    let _ = writeln!(s);
+    let _ = writeln!(
+        s,
         "## Base calibration\n\n| parameter | file | fitted (base) | fitted (final) |\n|---|---|---|---|"
     );
     for (b, f) in r.base_calibration.iter().zip(&r.final_calibration) {
@@ -182,6 +196,12 @@ pub fn print_summary(r: &GapReport, out: &Path) {
         }
     }
     println!("gap after  {:.4} (residual/noise variance {:.2})", r.gap_after, r.consistency_after);
+    let structure: Vec<String> = r
+        .residual_structure
+        .iter()
+        .map(|c| format!("{} {:.1}→{:.1}", c.condition, c.chi2_per_dof_before, c.chi2_per_dof_after))
+        .collect();
+    println!("residual structure by condition (χ²/dof, before→after): {}", structure.join(", "));
     println!(
         "{:<6} {:<28} {:>10} {:>5} {:>10} {:>10} {:>8} {:>8}  parameters",
         "round", "effect", "score", "rank", "LR", "ΔBIC", "CV %", "gap"
