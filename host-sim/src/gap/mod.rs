@@ -420,6 +420,9 @@ fn separating_experiment(group: &[&Candidate], model: &Model, data: &Data, s: f6
     best
 }
 
+/// A row's level of one condition.
+type LevelKey<'a> = Box<dyn Fn(usize) -> i64 + 'a>;
+
 /// χ² per degree of freedom of the level means of the weighted residuals, per condition. The load
 /// level is a row's rank in load within its curve (the load fraction of a measured curve).
 fn structure(data: &Data, resid: &[f64], s: f64) -> Vec<(String, usize, f64)> {
@@ -432,7 +435,7 @@ fn structure(data: &Data, resid: &[f64], s: f64) -> Vec<(String, usize, f64)> {
             load_rank[i] = r as i64;
         }
     }
-    let keys: [(&str, Box<dyn Fn(usize) -> i64>); 5] = [
+    let keys: [(&str, LevelKey); 5] = [
         ("preload", Box::new(|i| (data.conds[i].preload_n * 1e3).round() as i64)),
         ("voltage", Box::new(|i| (data.conds[i].voltage_v * 1e3).round() as i64)),
         ("frequency", Box::new(|i| (data.conds[i].frequency_hz * 1e3).round() as i64)),
