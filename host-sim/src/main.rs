@@ -78,6 +78,10 @@ enum Command {
     /// The virtual controller: the core against the plant in real time, speaking PI GCS 2.0 over
     /// TCP or a pty (see the README's UART commands section).
     Serve(host_sim::serve::ServeArgs),
+    /// Model-gap workflow: calibrate to measured speeds, name the missing effects, report.
+    Gap(host_sim::gap::GapArgs),
+    /// Synthetic measured data from the plant with hidden effects (the gap workflow's input).
+    Measure(host_sim::measure::MeasureArgs),
 }
 
 #[derive(clap::Args)]
@@ -254,6 +258,8 @@ fn run(cli: Cli) -> Result<()> {
                 }
             }
         }
+        Command::Gap(args) => host_sim::gap::run(args, &params)?,
+        Command::Measure(args) => host_sim::measure::run(args, &params)?,
         Command::Demo { plot: plot_path } => {
             println!("Shaking-beam piezo motor, closed loop: the firmware's controller against the plant");
             let (rows, trace) = moves::demo(&params, |label| eprintln!("demo: {label}..."))?;

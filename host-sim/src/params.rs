@@ -6,6 +6,7 @@
 
 use anyhow::{bail, Context, Result};
 
+use crate::effects::Effects;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -23,6 +24,9 @@ pub struct Params {
     pub slider: Slider,
     pub sensors: Sensors,
     pub integrator: Integrator,
+    /// Effects beyond the base model (`crate::effects`); optional, absent in the base model.
+    #[serde(default, skip_serializing_if = "Effects::is_none")]
+    pub effects: Effects,
 }
 
 /// Piezo stacks (PL055.30 in the prototype).
@@ -217,7 +221,7 @@ impl Params {
         if self.integrator.step_s > 1e-4 {
             bail!("integrator.step_s above 100 µs cannot resolve the drive period");
         }
-        Ok(())
+        self.effects.validate()
     }
 
     /// `k1 = kT + kS` (paper §2.1).

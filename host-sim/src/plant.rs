@@ -7,6 +7,7 @@
 //! located to `step/2^10`. This handles `kc` up to 2e9 N/m without a tiny step. The slider uses a
 //! velocity-level implicit friction law (stick solved exactly), so sticking never chatters.
 
+use crate::effects::Effects;
 use crate::params::{FrictionModel, Params};
 use crate::steady::amplifier_stage_tau_s;
 use nalgebra::SMatrix;
@@ -90,6 +91,22 @@ pub struct Plant {
     friction_force_n: f64,
     foot_speed_m_s: f64,
     drive_off: bool,
+    // Effects beyond the base model (crate::effects); all inactive in the base model.
+    effects: Effects,
+    /// Sense of the foot's ellipse (+1/−1), inferred from the two stack voltages
+    /// (`assembly_asymmetry` only).
+    drive_direction: i8,
+    /// Low-passed `e1·ė2 − e2·ė1` of the stack voltage deviations: its sign is the drive sense.
+    sense_lp: f64,
+    preload_setting_n: f64,
+    /// `amplifier_rolloff`: output of the extra pole per channel (deviation from mid-range, V).
+    rolloff_v: [f64; 2],
+    rolloff_decay: f64,
+    rolloff_tau_s: f64,
+    /// `stator_resonance`: resonator state (deviation V, V/s) per channel and its exact transition.
+    resonator: [[f64; 2]; 2],
+    resonator_phi: [[f64; 2]; 2],
+    resonator_gamma: [f64; 2],
 }
 
 /// Something that produces the two DAC output voltages (at the amplifier output) at time `t`.
@@ -133,7 +150,8 @@ impl Plant {
         let m2 = p.stator.counterweight_mass_kg;
         let k1 = p.k1_n_per_m();
         let k2 = p.stator.preload_spring_n_per_m;
-        let kc = p.contact.stiffness_n_per_m;
+        // `hertz_contact`: the contact stiffness at this static preload (unchanged without it).
+        let kc = p.effects.contact_stiffness_n_per_m(p.contact.stiffness_n_per_m, preload_n);
         let zeta = p.stator.damping_ratio;
         // Structural damping: each spring gets the dashpot of its own mode's damping ratio.
         let c1 = 2.0 * zeta * (k1 * m1 * m2 / (m1 + m2)).sqrt();
@@ -205,7 +223,33 @@ impl Plant {
             friction_force_n: 0.0,
             foot_speed_m_s: 0.0,
             drive_off: false,
+            effects: p.effects.clone(),
+            drive_direction: 1,
+            sense_lp: 0.0,
+            preload_setting_n: preload_n,
+            rolloff_v: [0.0; 2],
+            rolloff_decay: 0.0,
+            rolloff_tau_s: 0.0,
+            resonator: [[0.0; 2]; 2],
+            resonator_phi: [[0.0; 2]; 2],
+            resonator_gamma: [0.0; 2],
         };
+        if let Some(r) = p.effects.amplifier_rolloff.filter(|r| r.rolloff_corner_hz > 0.0) {
+            plant.rolloff_tau_s = 1.0 / (std::f64::consts::TAU * r.rolloff_corner_hz);
+            plant.rolloff_decay = (-dt / plant.rolloff_tau_s).exp();
+        }
+        if let Some(r) = p.effects.stator_resonance.filter(|r| r.resonance_strength != 0.0) {
+            // z'' = ωr²(u − z) − 2ζωr z', exact over one step with u held.
+            let wr = std::f64::consts::TAU * r.resonance_hz;
+            let mut a = SMatrix::<f64, 3, 3>::zeros();
+            a[(0, 1)] = 1.0;
+            a[(1, 0)] = -wr * wr;
+            a[(1, 1)] = -2.0 * r.resonance_damping_ratio * wr;
+            a[(1, 2)] = wr * wr;
+            let e = (a * dt).exp();
+            plant.resonator_phi = [[e[(0, 0)], e[(0, 1)]], [e[(1, 0)], e[(1, 1)]]];
+            plant.resonator_gamma = [e[(0, 2)], e[(1, 2)]];
+        }
         plant.contact_force_n = plant.contact_force_of(&plant.x);
         plant
     }
@@ -253,6 +297,12 @@ impl Plant {
     pub fn set_preload_n(&mut self, preload_n: f64) {
         let now = self.preload_force_n();
         self.anchor_m += (preload_n - now) / self.p.stator.preload_spring_n_per_m;
+        self.preload_setting_n = preload_n;
+    }
+    /// Drive sense the plant currently sees (+1 or −1): the sense in which the stack voltages
+    /// turn (channel 2 lagging channel 1 is +1). Tracked only with `assembly_asymmetry`.
+    pub fn drive_direction(&self) -> i8 {
+        self.drive_direction
     }
     pub fn set_friction_model(&mut self, model: FrictionModel) {
         self.friction_model = model;
@@ -350,12 +400,28 @@ impl Plant {
             self.amp_b_v[ch] = u + b1;
             rate_v_s[ch] = (a1 - b1) / self.tau_s;
         }
+        if self.rolloff_tau_s > 0.0 || self.resonator_gamma[0] != 0.0 {
+            self.drive_effects(&mut mid_v, &mut rate_v_s);
+        }
         let s = &self.p.stator;
         let stroke = self.p.stack.stroke_m_per_v;
         // Eq. (1)/(3): the normal force is the difference of the stack forces, the tangential
         // foot motion the sum of the strokes.
         let drive_n = s.normal_force_ratio * self.p.stack.stiffness_n_per_m * stroke * (mid_v[0] - mid_v[1]);
-        let foot_speed = s.tangential_scale * stroke * (rate_v_s[0] + rate_v_s[1]);
+        let mut foot_speed = s.tangential_scale * stroke * (rate_v_s[0] + rate_v_s[1]);
+        if self.effects.assembly_asymmetry.is_some() {
+            // The ellipse's sense: sign of e1·ė2 − e2·ė1 (+ when channel 2 lags), low-passed over
+            // ≈ 1 ms so offsets and ramps do not flip it; it is kept while the drive is idle.
+            let mid = self.p.amplifier_mid_v();
+            let cross = (mid_v[0] - mid) * rate_v_s[1] - (mid_v[1] - mid) * rate_v_s[0];
+            self.sense_lp += (cross - self.sense_lp) * (dt / 1e-3).min(1.0);
+            if self.sense_lp > 0.0 {
+                self.drive_direction = 1;
+            } else if self.sense_lp < 0.0 {
+                self.drive_direction = -1;
+            }
+            foot_speed *= self.effects.tangential_factor(self.drive_direction);
+        }
 
         let impulse = self.advance_normal(0, drive_n);
         let fc = impulse / dt;
@@ -365,17 +431,59 @@ impl Plant {
         self.time_s += dt;
     }
 
+    /// `amplifier_rolloff` (one more pole) and `stator_resonance` (stroke + k·(resonator − stroke))
+    /// on each channel's deviation from mid-range; the drive force and foot speed see the result.
+    fn drive_effects(&mut self, mid_v: &mut [f64; 2], rate_v_s: &mut [f64; 2]) {
+        let mid = self.p.amplifier_mid_v();
+        let k = self.effects.stator_resonance.map_or(0.0, |r| r.resonance_strength);
+        for ch in 0..2 {
+            let mut e = mid_v[ch] - mid;
+            let mut rate = rate_v_s[ch];
+            if self.rolloff_tau_s > 0.0 {
+                let old = self.rolloff_v[ch];
+                let new = e + (old - e) * self.rolloff_decay;
+                self.rolloff_v[ch] = new;
+                let out = 0.5 * (old + new);
+                rate = (e - out) / self.rolloff_tau_s;
+                e = out;
+            }
+            if k != 0.0 {
+                let [z, zd] = self.resonator[ch];
+                let ph = &self.resonator_phi;
+                let g = &self.resonator_gamma;
+                let nz = ph[0][0] * z + ph[0][1] * zd + g[0] * e;
+                let nzd = ph[1][0] * z + ph[1][1] * zd + g[1] * e;
+                self.resonator[ch] = [nz, nzd];
+                let (zm, zdm) = (0.5 * (z + nz), 0.5 * (zd + nzd));
+                e += k * (zm - e);
+                rate += k * (zdm - rate);
+            }
+            mid_v[ch] = mid + e;
+            rate_v_s[ch] = rate;
+        }
+    }
+
     /// Slider update with the selected friction law; the foot's tangential speed is imposed.
     fn update_slider(&mut self, fc: f64, foot_speed: f64) {
         let dt = self.dt_s;
         let f = &self.p.friction;
         let mass = self.p.slider.mass_kg;
-        let ext = self.load.force_n(self.slider_x_m) - self.p.slider.damping_n_s_per_m * self.slider_v_m_s;
+        let mut ext =
+            self.load.force_n(self.slider_x_m) - self.p.slider.damping_n_s_per_m * self.slider_v_m_s;
         let v_old = self.slider_v_m_s;
+        // Effects: guide friction on the slider; μ scaled by preload and (Coulomb laws) by slip.
+        let mut mu_scale = 1.0;
+        let mut stick_scale = 1.0;
+        if !self.effects.is_none() {
+            ext += self.effects.rail_force_on_slider_n(v_old);
+            let pf = self.effects.friction_factor(self.preload_setting_n);
+            mu_scale = pf * self.effects.stribeck_factor(foot_speed - v_old);
+            stick_scale = pf * self.effects.stribeck_peak();
+        }
         let friction = match self.friction_model {
             FrictionModel::Coulomb | FrictionModel::StaticDynamic => {
-                let mu_stick =
-                    if self.friction_model == FrictionModel::Coulomb { f.mu_dynamic } else { f.mu_static };
+                let mu_stick = stick_scale
+                    * if self.friction_model == FrictionModel::Coulomb { f.mu_dynamic } else { f.mu_static };
                 // Velocity-level implicit law: the friction needed to make the slider move with
                 // the foot at the end of the step, if within the sticking limit; otherwise
                 // sliding friction (plus εc's viscous part) in the direction of that need.
@@ -384,7 +492,7 @@ impl Plant {
                     need
                 } else if fc > 0.0 {
                     // Implicit viscous part: εc·(ẋ − v_new) with v_new from this same update.
-                    let coulomb = f.mu_dynamic * fc * need.signum();
+                    let coulomb = mu_scale * f.mu_dynamic * fc * need.signum();
                     let k = f.viscous_n_s_per_m * dt / mass;
                     let v_new = (v_old + dt * (ext + coulomb) / mass + k * foot_speed) / (1.0 + k);
                     coulomb + f.viscous_n_s_per_m * (foot_speed - v_new)

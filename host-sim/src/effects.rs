@@ -1,0 +1,623 @@
+//! Effects the base model leaves out (physics.md §6), as modules of BOTH the time-domain plant and
+//! the steady-state thrust model.
+//!
+//! Every effect has named parameters with their units in the name and reduces exactly to the base
+//! model when its strength parameter is zero (or the section is absent). In a parameter file they
+//! live in the optional `[effects.<name>]` sections; files without them load unchanged.
+//!
+//! | effect | plant | steady-state model |
+//! |---|---|---|
+//! | `rail_friction` | guide force `−c·sign(v) − b·v` on the slider | thrust balances `load + c·sign(v) + b·v` |
+//! | `assembly_asymmetry` | tangential foot speed × `(1 + a·d)` for drive sense `d` | `ω·Xc` × `(1 + a·d)` |
+//! | `preload_dependent_friction` | μ × `1/(1 + s·max(0, F0 − Fk))` | same factor on μ |
+//! | `stribeck_friction` | μ(slip) = μ·(1 + r·exp(−(slip/vs)²)) in the Coulomb law | period average of the same law by Gauss–Legendre quadrature |
+//! | `amplifier_rolloff` | one extra pole at `fc` on each stack voltage | voltage × `1/√(1 + (f/fc)²)` |
+//! | `stator_resonance` | stroke + k·(resonator(stroke) − stroke), resonator at `fr`, ζ | voltage × `|1 + k·(H(jω) − 1)|` |
+//! | `hertz_contact` | `kc × (F0/Fref)^n` | same `kc` in eq. (7) |
+
+use crate::params::Params;
+use crate::steady::{OperatingPoint, ThrustModel};
+use anyhow::{bail, Result};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::f64::consts::{PI, TAU};
+
+/// The optional `[effects]` section of a parameter file.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Effects {
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rail_friction: Option<RailFriction>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub assembly_asymmetry: Option<AssemblyAsymmetry>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preload_dependent_friction: Option<PreloadDependentFriction>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stribeck_friction: Option<StribeckFriction>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub amplifier_rolloff: Option<AmplifierRolloff>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stator_resonance: Option<StatorResonance>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hertz_contact: Option<HertzContact>,
+    /// One-sigma uncertainty of fitted effect parameters, by parameter name (written by `gap`).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub std_dev: BTreeMap<String, f64>,
+}
+
+/// Coulomb + viscous drag in the slider guide (the paper's "inner friction").
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RailFriction {
+    pub rail_coulomb_n: f64,
+    #[serde(default)]
+    pub rail_viscous_n_s_per_m: f64,
+}
+
+/// Forward and backward strokes differ: the tangential amplitude is `Xc·(1 + a·d)` for sense `d`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AssemblyAsymmetry {
+    pub asymmetry_fraction: f64,
+}
+
+/// μ falls above a knee preload: `μ/(1 + s·max(0, F0 − Fk))`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PreloadDependentFriction {
+    pub mu_drop_per_n: f64,
+    pub knee_preload_n: f64,
+}
+
+/// μ rises at low sliding (slip) speed: `μ·(1 + r·exp(−(slip/vs)²))`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StribeckFriction {
+    pub stribeck_rise: f64,
+    #[serde(default = "default_stribeck_speed")]
+    pub stribeck_speed_m_s: f64,
+}
+
+/// The drive amplitude falls with frequency: one pole at `rolloff_corner_hz` (0 = none).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AmplifierRolloff {
+    pub rolloff_corner_hz: f64,
+}
+
+/// The stroke rises toward a stator mode: stroke + k·(resonator − stroke).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StatorResonance {
+    pub resonance_strength: f64,
+    #[serde(default = "default_resonance_hz")]
+    pub resonance_hz: f64,
+    #[serde(default = "default_resonance_damping")]
+    pub resonance_damping_ratio: f64,
+}
+
+/// Contact stiffness grows with preload: `kc·(F0/Fref)^n` (Hertz: n = 1/3).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct HertzContact {
+    pub hertz_exponent: f64,
+    #[serde(default = "default_hertz_ref")]
+    pub hertz_ref_preload_n: f64,
+}
+
+pub const DEFAULT_STRIBECK_SPEED_M_S: f64 = 3e-4;
+pub const DEFAULT_RESONANCE_HZ: f64 = 3170.0;
+pub const DEFAULT_RESONANCE_DAMPING: f64 = 0.05;
+pub const DEFAULT_HERTZ_REF_N: f64 = 16.0;
+pub const DEFAULT_KNEE_N: f64 = 12.0;
+
+fn default_stribeck_speed() -> f64 {
+    DEFAULT_STRIBECK_SPEED_M_S
+}
+fn default_resonance_hz() -> f64 {
+    DEFAULT_RESONANCE_HZ
+}
+fn default_resonance_damping() -> f64 {
+    DEFAULT_RESONANCE_DAMPING
+}
+fn default_hertz_ref() -> f64 {
+    DEFAULT_HERTZ_REF_N
+}
+
+/// Names of the library's effects, in a fixed order.
+pub const EFFECT_NAMES: [&str; 7] = [
+    "rail_friction",
+    "assembly_asymmetry",
+    "preload_dependent_friction",
+    "stribeck_friction",
+    "amplifier_rolloff",
+    "stator_resonance",
+    "hertz_contact",
+];
+
+/// Every parameter name any effect knows, with the effect it belongs to.
+pub const PARAM_NAMES: [(&str, &str); 13] = [
+    ("rail_friction", "rail_coulomb_n"),
+    ("rail_friction", "rail_viscous_n_s_per_m"),
+    ("assembly_asymmetry", "asymmetry_fraction"),
+    ("preload_dependent_friction", "mu_drop_per_n"),
+    ("preload_dependent_friction", "knee_preload_n"),
+    ("stribeck_friction", "stribeck_rise"),
+    ("stribeck_friction", "stribeck_speed_m_s"),
+    ("amplifier_rolloff", "rolloff_corner_hz"),
+    ("stator_resonance", "resonance_strength"),
+    ("stator_resonance", "resonance_hz"),
+    ("stator_resonance", "resonance_damping_ratio"),
+    ("hertz_contact", "hertz_exponent"),
+    ("hertz_contact", "hertz_ref_preload_n"),
+];
+
+impl Effects {
+    pub fn is_none(&self) -> bool {
+        *self == Effects::default()
+    }
+
+    /// Names of the effects present with a non-zero strength.
+    pub fn active(&self) -> Vec<&'static str> {
+        EFFECT_NAMES.iter().copied().filter(|n| self.is_active(n)).collect()
+    }
+
+    pub fn is_active(&self, name: &str) -> bool {
+        match name {
+            "rail_friction" => {
+                self.rail_friction.is_some_and(|e| e.rail_coulomb_n != 0.0 || e.rail_viscous_n_s_per_m != 0.0)
+            }
+            "assembly_asymmetry" => self.assembly_asymmetry.is_some_and(|e| e.asymmetry_fraction != 0.0),
+            "preload_dependent_friction" => {
+                self.preload_dependent_friction.is_some_and(|e| e.mu_drop_per_n != 0.0)
+            }
+            "stribeck_friction" => self.stribeck_friction.is_some_and(|e| e.stribeck_rise != 0.0),
+            "amplifier_rolloff" => self.amplifier_rolloff.is_some_and(|e| e.rolloff_corner_hz != 0.0),
+            "stator_resonance" => self.stator_resonance.is_some_and(|e| e.resonance_strength != 0.0),
+            "hertz_contact" => self.hertz_contact.is_some_and(|e| e.hertz_exponent != 0.0),
+            _ => false,
+        }
+    }
+
+    /// Removes one effect (back to the base model for that module).
+    pub fn clear(&mut self, name: &str) {
+        match name {
+            "rail_friction" => self.rail_friction = None,
+            "assembly_asymmetry" => self.assembly_asymmetry = None,
+            "preload_dependent_friction" => self.preload_dependent_friction = None,
+            "stribeck_friction" => self.stribeck_friction = None,
+            "amplifier_rolloff" => self.amplifier_rolloff = None,
+            "stator_resonance" => self.stator_resonance = None,
+            "hertz_contact" => self.hertz_contact = None,
+            _ => {}
+        }
+    }
+
+    /// Sets one named parameter, creating its effect with the other parameters at their defaults.
+    pub fn set(&mut self, name: &str, value: f64) -> Result<()> {
+        match name {
+            "rail_coulomb_n" => {
+                self.rail_friction
+                    .get_or_insert(RailFriction { rail_coulomb_n: 0.0, rail_viscous_n_s_per_m: 0.0 })
+                    .rail_coulomb_n = value
+            }
+            "rail_viscous_n_s_per_m" => {
+                self.rail_friction
+                    .get_or_insert(RailFriction { rail_coulomb_n: 0.0, rail_viscous_n_s_per_m: 0.0 })
+                    .rail_viscous_n_s_per_m = value
+            }
+            "asymmetry_fraction" => {
+                self.assembly_asymmetry
+                    .get_or_insert(AssemblyAsymmetry { asymmetry_fraction: 0.0 })
+                    .asymmetry_fraction = value
+            }
+            "mu_drop_per_n" | "knee_preload_n" => {
+                let e = self.preload_dependent_friction.get_or_insert(PreloadDependentFriction {
+                    mu_drop_per_n: 0.0,
+                    knee_preload_n: DEFAULT_KNEE_N,
+                });
+                if name == "mu_drop_per_n" {
+                    e.mu_drop_per_n = value
+                } else {
+                    e.knee_preload_n = value
+                }
+            }
+            "stribeck_rise" | "stribeck_speed_m_s" => {
+                let e = self.stribeck_friction.get_or_insert(StribeckFriction {
+                    stribeck_rise: 0.0,
+                    stribeck_speed_m_s: DEFAULT_STRIBECK_SPEED_M_S,
+                });
+                if name == "stribeck_rise" {
+                    e.stribeck_rise = value
+                } else {
+                    e.stribeck_speed_m_s = value
+                }
+            }
+            "rolloff_corner_hz" => {
+                self.amplifier_rolloff
+                    .get_or_insert(AmplifierRolloff { rolloff_corner_hz: 0.0 })
+                    .rolloff_corner_hz = value
+            }
+            "resonance_strength" | "resonance_hz" | "resonance_damping_ratio" => {
+                let e = self.stator_resonance.get_or_insert(StatorResonance {
+                    resonance_strength: 0.0,
+                    resonance_hz: DEFAULT_RESONANCE_HZ,
+                    resonance_damping_ratio: DEFAULT_RESONANCE_DAMPING,
+                });
+                match name {
+                    "resonance_strength" => e.resonance_strength = value,
+                    "resonance_hz" => e.resonance_hz = value,
+                    _ => e.resonance_damping_ratio = value,
+                }
+            }
+            "hertz_exponent" | "hertz_ref_preload_n" => {
+                let e = self.hertz_contact.get_or_insert(HertzContact {
+                    hertz_exponent: 0.0,
+                    hertz_ref_preload_n: DEFAULT_HERTZ_REF_N,
+                });
+                if name == "hertz_exponent" {
+                    e.hertz_exponent = value
+                } else {
+                    e.hertz_ref_preload_n = value
+                }
+            }
+            _ => bail!("unknown effect parameter '{name}'"),
+        }
+        Ok(())
+    }
+
+    /// Rejects meaningless values with a one-line message.
+    pub fn validate(&self) -> Result<()> {
+        let finite_nonneg = |name: &str, v: f64| -> Result<()> {
+            if !(v.is_finite() && v >= 0.0) {
+                bail!("effects: {name} must be zero or positive, got {v}");
+            }
+            Ok(())
+        };
+        if let Some(e) = self.rail_friction {
+            finite_nonneg("rail_coulomb_n", e.rail_coulomb_n)?;
+            finite_nonneg("rail_viscous_n_s_per_m", e.rail_viscous_n_s_per_m)?;
+        }
+        if let Some(e) = self.assembly_asymmetry {
+            if !(e.asymmetry_fraction.is_finite() && e.asymmetry_fraction.abs() < 0.9) {
+                bail!("effects: asymmetry_fraction must be within ±0.9, got {}", e.asymmetry_fraction);
+            }
+        }
+        if let Some(e) = self.preload_dependent_friction {
+            finite_nonneg("mu_drop_per_n", e.mu_drop_per_n)?;
+            finite_nonneg("knee_preload_n", e.knee_preload_n)?;
+        }
+        if let Some(e) = self.stribeck_friction {
+            finite_nonneg("stribeck_rise", e.stribeck_rise)?;
+            if !(e.stribeck_speed_m_s.is_finite() && e.stribeck_speed_m_s > 0.0) {
+                bail!("effects: stribeck_speed_m_s must be positive, got {}", e.stribeck_speed_m_s);
+            }
+        }
+        if let Some(e) = self.amplifier_rolloff {
+            finite_nonneg("rolloff_corner_hz", e.rolloff_corner_hz)?;
+        }
+        if let Some(e) = self.stator_resonance {
+            if !(e.resonance_strength.is_finite() && (0.0..=1.0).contains(&e.resonance_strength)) {
+                bail!("effects: resonance_strength must be in [0, 1], got {}", e.resonance_strength);
+            }
+            if !(e.resonance_hz.is_finite() && e.resonance_hz > 0.0) {
+                bail!("effects: resonance_hz must be positive, got {}", e.resonance_hz);
+            }
+            if !(e.resonance_damping_ratio.is_finite() && e.resonance_damping_ratio > 0.0) {
+                bail!("effects: resonance_damping_ratio must be positive, got {}", e.resonance_damping_ratio);
+            }
+        }
+        if let Some(e) = self.hertz_contact {
+            if !(e.hertz_exponent.is_finite() && (0.0..=1.0).contains(&e.hertz_exponent)) {
+                bail!("effects: hertz_exponent must be in [0, 1], got {}", e.hertz_exponent);
+            }
+            if !(e.hertz_ref_preload_n.is_finite() && e.hertz_ref_preload_n > 0.0) {
+                bail!("effects: hertz_ref_preload_n must be positive, got {}", e.hertz_ref_preload_n);
+            }
+        }
+        for (k, v) in &self.std_dev {
+            if !PARAM_NAMES.iter().any(|(_, n)| n == k) {
+                bail!("effects.std_dev: unknown parameter '{k}'");
+            }
+            finite_nonneg(k, *v)?;
+        }
+        Ok(())
+    }
+
+    /// `hertz_contact`: the contact stiffness at a static preload.
+    pub fn contact_stiffness_n_per_m(&self, base_n_per_m: f64, preload_n: f64) -> f64 {
+        match self.hertz_contact {
+            Some(h) if h.hertz_exponent != 0.0 => {
+                base_n_per_m * (preload_n.max(1e-6) / h.hertz_ref_preload_n).powf(h.hertz_exponent)
+            }
+            _ => base_n_per_m,
+        }
+    }
+
+    /// `preload_dependent_friction`: factor on μ at a static preload.
+    pub fn friction_factor(&self, preload_n: f64) -> f64 {
+        match self.preload_dependent_friction {
+            Some(e) if e.mu_drop_per_n != 0.0 => {
+                1.0 / (1.0 + e.mu_drop_per_n * (preload_n - e.knee_preload_n).max(0.0))
+            }
+            _ => 1.0,
+        }
+    }
+
+    /// `assembly_asymmetry`: factor on the tangential stroke for drive sense `direction`.
+    pub fn tangential_factor(&self, direction: i8) -> f64 {
+        match self.assembly_asymmetry {
+            Some(e) => 1.0 + e.asymmetry_fraction * f64::from(direction.signum()),
+            None => 1.0,
+        }
+    }
+
+    /// `amplifier_rolloff` × `stator_resonance`: steady gain on the stack voltage swing at `f`.
+    pub fn drive_gain(&self, frequency_hz: f64) -> f64 {
+        let mut g = 1.0;
+        if let Some(r) = self.amplifier_rolloff {
+            if r.rolloff_corner_hz > 0.0 {
+                g /= (1.0 + (frequency_hz / r.rolloff_corner_hz).powi(2)).sqrt();
+            }
+        }
+        if let Some(r) = self.stator_resonance {
+            if r.resonance_strength != 0.0 {
+                // H = ωr²/(ωr² − ω² + 2jζωrω); G = 1 + k·(H − 1).
+                let x = frequency_hz / r.resonance_hz;
+                let (re_d, im_d) = (1.0 - x * x, 2.0 * r.resonance_damping_ratio * x);
+                let den = re_d * re_d + im_d * im_d;
+                let (h_re, h_im) = (re_d / den, -im_d / den);
+                let k = r.resonance_strength;
+                let (g_re, g_im) = (1.0 + k * (h_re - 1.0), k * h_im);
+                g *= (g_re * g_re + g_im * g_im).sqrt();
+            }
+        }
+        g
+    }
+}
+
+/// One steady operating row: the drive, the load opposing the commanded motion, the drive sense.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Condition {
+    pub preload_n: f64,
+    pub voltage_v: f64,
+    pub frequency_hz: f64,
+    pub load_n: f64,
+    pub direction: i8,
+}
+
+/// The steady-state model with effects at one condition.
+#[derive(Debug, Clone, Copy)]
+pub struct EffectModel {
+    pub base: ThrustModel,
+    pub stribeck_rise: f64,
+    pub stribeck_speed_m_s: f64,
+    pub rail_coulomb_n: f64,
+    pub rail_viscous_n_s_per_m: f64,
+}
+
+impl EffectModel {
+    pub fn new(p: &Params, c: &Condition) -> Self {
+        let e = &p.effects;
+        let hertz;
+        let params = if e.hertz_contact.is_some_and(|h| h.hertz_exponent != 0.0) {
+            let mut q = p.clone();
+            q.contact.stiffness_n_per_m =
+                e.contact_stiffness_n_per_m(p.contact.stiffness_n_per_m, c.preload_n);
+            hertz = q;
+            &hertz
+        } else {
+            p
+        };
+        let op = OperatingPoint {
+            preload_n: c.preload_n,
+            voltage_v: c.voltage_v * e.drive_gain(c.frequency_hz),
+            frequency_hz: c.frequency_hz,
+        };
+        let mut base = ThrustModel::new(params, op);
+        base.mu *= e.friction_factor(c.preload_n);
+        base.foot_speed_m_s *= e.tangential_factor(c.direction);
+        let (rise, vs) = match e.stribeck_friction {
+            Some(s) => (s.stribeck_rise, s.stribeck_speed_m_s),
+            None => (0.0, DEFAULT_STRIBECK_SPEED_M_S),
+        };
+        let (rc, rv) = match e.rail_friction {
+            Some(r) => (r.rail_coulomb_n, r.rail_viscous_n_s_per_m),
+            None => (0.0, 0.0),
+        };
+        EffectModel {
+            base,
+            stribeck_rise: rise,
+            stribeck_speed_m_s: vs,
+            rail_coulomb_n: rc,
+            rail_viscous_n_s_per_m: rv,
+        }
+    }
+
+    /// Mean thrust of the foot on a slider at `v` (drive direction), with Stribeck if present.
+    pub fn thrust_n(&self, speed_m_s: f64) -> f64 {
+        let f = self.base.thrust_n(speed_m_s);
+        if self.stribeck_rise == 0.0 {
+            return f;
+        }
+        f + self.stribeck_rise * self.base.mu * self.stribeck_integral(speed_m_s)
+    }
+
+    /// (1/2π)∮ Fc(φ)·sign(slip)·exp(−(slip/vs)²) dφ over the contact arc, slip = ωX·cos φ − v.
+    fn stribeck_integral(&self, v: f64) -> f64 {
+        let m = &self.base;
+        let wx = m.foot_speed_m_s;
+        let half = if m.full_contact() { PI } else { 0.5 * m.contact_angle_rad };
+        if half <= 0.0 {
+            return 0.0;
+        }
+        let phi_p = if wx > 0.0 {
+            (v / wx).clamp(-1.0, 1.0).acos()
+        } else if v < 0.0 {
+            PI
+        } else {
+            0.0
+        };
+        let vs = self.stribeck_speed_m_s;
+        let g = |phi: f64| {
+            let slip = wx * phi.cos() - v;
+            let fc = m.contact_force_n(phi);
+            fc * slip.signum() * (-(slip / vs).powi(2)).exp()
+        };
+        // Symmetric arc: twice the integral over [0, half], split where the slip changes sign.
+        let total = if phi_p > 0.0 && phi_p < half {
+            gauss_legendre(&g, 0.0, phi_p) + gauss_legendre(&g, phi_p, half)
+        } else {
+            gauss_legendre(&g, 0.0, half)
+        };
+        2.0 * total / TAU
+    }
+
+    /// Force the thrust must balance at `v`: the load plus the guide friction.
+    fn resisting_n(&self, load_n: f64, v: f64, coulomb_sign: f64) -> f64 {
+        load_n + self.rail_coulomb_n * coulomb_sign + self.rail_viscous_n_s_per_m * v
+    }
+
+    /// Steady speed along the commanded direction at `load_n`; 0 when stalled by the guide's
+    /// Coulomb friction; negative when the load overruns the motor.
+    pub fn speed_at_load_m_s(&self, load_n: f64) -> f64 {
+        let wx = self.base.foot_speed_m_s.max(1e-12);
+        let net = |v: f64, s: f64| self.thrust_n(v) - self.resisting_n(load_n, v, s);
+        let at0 = self.thrust_n(0.0);
+        if at0 - load_n > self.rail_coulomb_n {
+            // Forward: root of net(v, +1) on (0, hi].
+            let mut hi = wx;
+            while net(hi, 1.0) > 0.0 && hi < 1.0 {
+                hi *= 2.0;
+            }
+            bisect(|v| net(v, 1.0), 0.0, hi)
+        } else if at0 - load_n >= -self.rail_coulomb_n {
+            0.0
+        } else {
+            let mut lo = -wx;
+            while net(lo, -1.0) < 0.0 && lo > -1.0 {
+                lo *= 2.0;
+            }
+            bisect(|v| net(v, -1.0), lo, 0.0)
+        }
+    }
+}
+
+/// Root of a decreasing function with f(lo) ≥ 0 ≥ f(hi): Illinois (regula falsi) with a bisection
+/// guard, to a bracket of 1e-11 of the interval.
+fn bisect(f: impl Fn(f64) -> f64, lo: f64, hi: f64) -> f64 {
+    let (mut a, mut b) = (lo, hi);
+    let (mut fa, mut fb) = (f(a), f(b));
+    if fa <= 0.0 {
+        return a;
+    }
+    if fb >= 0.0 {
+        return b;
+    }
+    let tol = 1e-11 * (hi - lo).abs().max(1e-12);
+    let ftol = 1e-13 * (fa - fb);
+    let mut side = 0i8;
+    for i in 0..100 {
+        let mut m = (a * fb - b * fa) / (fb - fa);
+        if !(m > a && m < b) || i % 8 == 7 {
+            m = 0.5 * (a + b);
+        }
+        let fm = f(m);
+        if fm.abs() <= ftol {
+            return m;
+        }
+        if fm > 0.0 {
+            a = m;
+            fa = fm;
+            if side == 1 {
+                fb *= 0.5;
+            }
+            side = 1;
+        } else {
+            b = m;
+            fb = fm;
+            if side == -1 {
+                fa *= 0.5;
+            }
+            side = -1;
+        }
+        if b - a < tol {
+            break;
+        }
+    }
+    (a * fb - b * fa) / (fb - fa)
+}
+
+/// 20-point Gauss–Legendre quadrature on [a, b].
+fn gauss_legendre(f: &impl Fn(f64) -> f64, a: f64, b: f64) -> f64 {
+    const X: [f64; 10] = [
+        0.076_526_521_133_497_33,
+        0.227_785_851_141_645_08,
+        0.373_706_088_715_419_56,
+        0.510_867_001_950_827_1,
+        0.636_053_680_726_515,
+        0.746_331_906_460_150_8,
+        0.839_116_971_822_218_8,
+        0.912_234_428_251_326,
+        0.963_971_927_277_913_8,
+        0.993_128_599_185_094_9,
+    ];
+    const W: [f64; 10] = [
+        0.152_753_387_130_725_85,
+        0.149_172_986_472_603_75,
+        0.142_096_109_318_382_05,
+        0.131_688_638_449_176_63,
+        0.118_194_531_961_518_42,
+        0.101_930_119_817_240_44,
+        0.083_276_741_576_704_75,
+        0.062_672_048_334_109_06,
+        0.040_601_429_800_386_94,
+        0.017_614_007_139_152_12,
+    ];
+    let (c, h) = (0.5 * (a + b), 0.5 * (b - a));
+    let mut s = 0.0;
+    for i in 0..10 {
+        s += W[i] * (f(c + h * X[i]) + f(c - h * X[i]));
+    }
+    s * h
+}
+
+/// Steady speed (m/s along the commanded direction) of the steady-state model with effects.
+pub fn model_speed_m_s(p: &Params, c: &Condition) -> f64 {
+    EffectModel::new(p, c).speed_at_load_m_s(c.load_n)
+}
+
+/// Plant-side hooks, evaluated once per step.
+impl Effects {
+    /// Guide force on the slider (along +x) at velocity `v`.
+    pub fn rail_force_on_slider_n(&self, v: f64) -> f64 {
+        match self.rail_friction {
+            Some(r) => {
+                let coulomb = if v > 0.0 {
+                    r.rail_coulomb_n
+                } else if v < 0.0 {
+                    -r.rail_coulomb_n
+                } else {
+                    0.0
+                };
+                -coulomb - r.rail_viscous_n_s_per_m * v
+            }
+            None => 0.0,
+        }
+    }
+
+    /// μ multiplier at slip speed `slip` (Stribeck).
+    pub fn stribeck_factor(&self, slip_m_s: f64) -> f64 {
+        match self.stribeck_friction {
+            Some(s) if s.stribeck_rise != 0.0 => {
+                1.0 + s.stribeck_rise * (-(slip_m_s / s.stribeck_speed_m_s).powi(2)).exp()
+            }
+            _ => 1.0,
+        }
+    }
+
+    /// `stribeck_friction` peak factor (at zero slip), for the sticking limit.
+    pub fn stribeck_peak(&self) -> f64 {
+        self.stribeck_factor(0.0)
+    }
+}

@@ -1,0 +1,355 @@
+//! Weighted nonlinear least squares of the steady-state model (with effects) to measured speeds.
+//!
+//! Parameter vector: `[ln(μ/μ0), ln(λ/λ0), ln(ρ/ρ0)]` (friction coefficient, tangential and normal
+//! amplitude scale factors of the base file) followed by each included effect's internal
+//! parameters. Levenberg–Marquardt with box bounds, forward-difference Jacobian.
+
+use crate::effects::{model_speed_m_s, Condition, Effects};
+use crate::measured_csv::MeasuredRow;
+use crate::params::Params;
+use nalgebra::{DMatrix, DVector};
+
+/// Relative weight of a row: `|v| + 0.25·v̄` (matches the noise model of `measure`); the absolute
+/// noise scale is estimated from the data.
+pub const WEIGHT_FLOOR_OF_MEAN: f64 = 0.25;
+
+/// Measured data in SI units with weights and curve membership.
+#[derive(Debug, Clone)]
+pub struct Data {
+    pub conds: Vec<Condition>,
+    /// Measured speed, m/s.
+    pub y: Vec<f64>,
+    /// Relative weight scale σ_i, m/s.
+    pub sigma: Vec<f64>,
+    /// Curve (preload, voltage, frequency, direction) of each row.
+    pub curve: Vec<usize>,
+    pub n_curves: usize,
+}
+
+impl Data {
+    pub fn from_rows(rows: &[MeasuredRow]) -> Self {
+        let conds: Vec<Condition> = rows
+            .iter()
+            .map(|r| Condition {
+                preload_n: r.preload_n,
+                voltage_v: r.voltage_v,
+                frequency_hz: r.frequency_hz,
+                load_n: r.load_n,
+                direction: r.direction,
+            })
+            .collect();
+        let y: Vec<f64> = rows.iter().map(|r| r.velocity_mm_s * 1e-3).collect();
+        let mean = y.iter().map(|v| v.abs()).sum::<f64>() / y.len().max(1) as f64;
+        let floor = (WEIGHT_FLOOR_OF_MEAN * mean).max(1e-9);
+        let sigma = y.iter().map(|v| v.abs() + floor).collect();
+        let mut keys: Vec<[i64; 4]> = Vec::new();
+        let curve = conds
+            .iter()
+            .map(|c| {
+                let k = [
+                    (c.preload_n * 1e6).round() as i64,
+                    (c.voltage_v * 1e6).round() as i64,
+                    (c.frequency_hz * 1e3).round() as i64,
+                    i64::from(c.direction),
+                ];
+                match keys.iter().position(|x| *x == k) {
+                    Some(i) => i,
+                    None => {
+                        keys.push(k);
+                        keys.len() - 1
+                    }
+                }
+            })
+            .collect();
+        Data { conds, y, sigma, curve, n_curves: keys.len() }
+    }
+
+    pub fn len(&self) -> usize {
+        self.y.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.y.is_empty()
+    }
+
+    pub fn mean_speed(&self) -> f64 {
+        self.y.iter().sum::<f64>() / self.len().max(1) as f64
+    }
+
+    /// Gap of a prediction: RMS(simulated − measured) / mean measured speed.
+    pub fn gap(&self, pred: &[f64]) -> f64 {
+        let n = self.len().max(1) as f64;
+        let ms = self.y.iter().zip(pred).map(|(y, p)| (p - y).powi(2)).sum::<f64>() / n;
+        ms.sqrt() / self.mean_speed().abs().max(1e-12)
+    }
+
+    /// Difference-based noise estimate (Gasser et al. pseudo-residuals of the weighted residuals
+    /// along load within each curve): smooth structure cancels, white noise stays. Returns the
+    /// noise scale in weighted units and the number of pseudo-residuals (0: not estimable).
+    pub fn noise_scale(&self, weighted_resid: &[f64]) -> (f64, usize) {
+        let mut sum = 0.0;
+        let mut count = 0usize;
+        for c in 0..self.n_curves {
+            let mut idx: Vec<usize> = (0..self.len()).filter(|&i| self.curve[i] == c).collect();
+            idx.sort_by(|&a, &b| self.conds[a].load_n.total_cmp(&self.conds[b].load_n));
+            for w in idx.windows(3) {
+                let (x0, x1, x2) =
+                    (self.conds[w[0]].load_n, self.conds[w[1]].load_n, self.conds[w[2]].load_n);
+                if x2 - x0 <= 0.0 {
+                    continue;
+                }
+                let a = (x2 - x1) / (x2 - x0);
+                let b = (x1 - x0) / (x2 - x0);
+                let e = a * weighted_resid[w[0]] + b * weighted_resid[w[2]] - weighted_resid[w[1]];
+                sum += e * e / (a * a + b * b + 1.0);
+                count += 1;
+            }
+        }
+        if count == 0 {
+            return (f64::NAN, 0);
+        }
+        ((sum / count as f64).sqrt(), count)
+    }
+}
+
+/// One internal parameter of an effect as the fit sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct ParamDef {
+    pub name: &'static str,
+    pub lo: f64,
+    pub hi: f64,
+    /// The value at which the effect vanishes (score test point).
+    pub zero: f64,
+    pub starts: &'static [f64],
+}
+
+/// The internal parameters of a library effect. Shape parameters not listed here (Stribeck
+/// speed, resonance frequency and damping, Hertz reference preload) keep the base file's values
+/// or their defaults.
+pub fn effect_params(name: &str) -> &'static [ParamDef] {
+    const RAIL: [ParamDef; 1] =
+        [ParamDef { name: "rail_coulomb_n", lo: 0.0, hi: 10.0, zero: 0.0, starts: &[0.1, 0.6] }];
+    const ASYM: [ParamDef; 1] =
+        [ParamDef { name: "asymmetry_fraction", lo: -0.5, hi: 0.5, zero: 0.0, starts: &[-0.05, 0.05] }];
+    const PRELOAD: [ParamDef; 2] = [
+        ParamDef { name: "mu_drop_per_n", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.02] },
+        // Knee starts are replaced by the midpoints between the measured preloads (see `starts`).
+        ParamDef { name: "knee_preload_n", lo: 0.0, hi: 60.0, zero: 12.0, starts: &[12.0] },
+    ];
+    const STRIBECK: [ParamDef; 1] =
+        [ParamDef { name: "stribeck_rise", lo: 0.0, hi: 5.0, zero: 0.0, starts: &[0.2, 1.0] }];
+    // Internal: q = (1 kHz / fc)²; fc = 1 kHz/√q (q = 0: no roll-off).
+    const ROLLOFF: [ParamDef; 1] =
+        [ParamDef { name: "rolloff_q", lo: 0.0, hi: 4.0, zero: 0.0, starts: &[0.05, 0.4] }];
+    const RES: [ParamDef; 1] =
+        [ParamDef { name: "resonance_strength", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.05, 0.3] }];
+    const HERTZ: [ParamDef; 1] =
+        [ParamDef { name: "hertz_exponent", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.1, 0.4] }];
+    match name {
+        "rail_friction" => &RAIL,
+        "assembly_asymmetry" => &ASYM,
+        "preload_dependent_friction" => &PRELOAD,
+        "stribeck_friction" => &STRIBECK,
+        "amplifier_rolloff" => &ROLLOFF,
+        "stator_resonance" => &RES,
+        "hertz_contact" => &HERTZ,
+        _ => &[],
+    }
+}
+
+/// Writes an effect's internal parameters into `effects`.
+pub fn apply_effect(effects: &mut Effects, name: &str, x: &[f64]) {
+    let set = |e: &mut Effects, k: &str, v: f64| {
+        // Names come from the library table; `set` only fails on unknown names.
+        let _ = e.set(k, v);
+    };
+    match name {
+        "amplifier_rolloff" => {
+            let q = x[0];
+            set(effects, "rolloff_corner_hz", if q > 0.0 { 1000.0 / q.sqrt() } else { 0.0 });
+        }
+        _ => {
+            for (d, v) in effect_params(name).iter().zip(x) {
+                set(effects, d.name, *v);
+            }
+        }
+    }
+}
+
+/// The named (file) parameters of an effect from its internal ones, for reports.
+pub fn named_values(name: &str, x: &[f64]) -> Vec<(&'static str, f64)> {
+    match name {
+        "amplifier_rolloff" => {
+            vec![("rolloff_corner_hz", if x[0] > 0.0 { 1000.0 / x[0].sqrt() } else { f64::INFINITY })]
+        }
+        _ => effect_params(name).iter().zip(x).map(|(d, v)| (d.name, *v)).collect(),
+    }
+}
+
+/// A model structure: the base parameters plus a list of effects to fit.
+#[derive(Debug, Clone)]
+pub struct Model {
+    pub base: Params,
+    pub effects: Vec<&'static str>,
+}
+
+pub const BASE_PARAMS: usize = 3;
+pub const BASE_NAMES: [&str; 3] =
+    ["friction.mu_dynamic", "stator.tangential_scale", "stator.normal_force_ratio"];
+const LOG_BOUND: f64 = 1.0;
+
+impl Model {
+    pub fn n_params(&self) -> usize {
+        BASE_PARAMS + self.effects.iter().map(|e| effect_params(e).len()).sum::<usize>()
+    }
+
+    pub fn bounds(&self) -> Vec<(f64, f64)> {
+        let mut b = vec![(-LOG_BOUND, LOG_BOUND); BASE_PARAMS];
+        for e in &self.effects {
+            b.extend(effect_params(e).iter().map(|d| (d.lo, d.hi)));
+        }
+        b
+    }
+
+    /// Offset of effect `name` in the parameter vector.
+    pub fn offset(&self, name: &str) -> Option<usize> {
+        let mut off = BASE_PARAMS;
+        for e in &self.effects {
+            if *e == name {
+                return Some(off);
+            }
+            off += effect_params(e).len();
+        }
+        None
+    }
+
+    pub fn params_at(&self, x: &[f64]) -> Params {
+        let mut p = self.base.clone();
+        let mu = x[0].exp();
+        p.friction.mu_dynamic *= mu;
+        p.friction.mu_static *= mu;
+        p.stator.tangential_scale *= x[1].exp();
+        p.stator.normal_force_ratio *= x[2].exp();
+        let mut off = BASE_PARAMS;
+        for e in &self.effects {
+            let k = effect_params(e).len();
+            apply_effect(&mut p.effects, e, &x[off..off + k]);
+            off += k;
+        }
+        p
+    }
+
+    pub fn predict(&self, x: &[f64], data: &Data, rows: &[usize]) -> Vec<f64> {
+        let p = self.params_at(x);
+        rows.iter().map(|&i| model_speed_m_s(&p, &data.conds[i])).collect()
+    }
+
+    fn weighted_resid(&self, x: &[f64], data: &Data, rows: &[usize]) -> Vec<f64> {
+        let pred = self.predict(x, data, rows);
+        rows.iter().zip(pred).map(|(&i, p)| (p - data.y[i]) / data.sigma[i]).collect()
+    }
+
+    /// Weighted Jacobian of the residuals (rows × params), forward differences inside the bounds.
+    pub fn jacobian(&self, x: &[f64], data: &Data, rows: &[usize], r0: &[f64]) -> DMatrix<f64> {
+        let b = self.bounds();
+        let n = x.len();
+        let mut j = DMatrix::zeros(rows.len(), n);
+        for k in 0..n {
+            let span = if k < BASE_PARAMS { 1.0 } else { b[k].1 - b[k].0 };
+            let mut h = 1e-6 * span.max(1e-9);
+            if x[k] + h > b[k].1 {
+                h = -h;
+            }
+            let mut xp = x.to_vec();
+            xp[k] += h;
+            let rp = self.weighted_resid(&xp, data, rows);
+            for i in 0..rows.len() {
+                j[(i, k)] = (rp[i] - r0[i]) / h;
+            }
+        }
+        j
+    }
+}
+
+/// Result of one fit.
+#[derive(Debug, Clone)]
+pub struct Fit {
+    pub x: Vec<f64>,
+    /// Weighted sum of squared residuals.
+    pub ssr: f64,
+    pub resid: Vec<f64>,
+    pub jac: DMatrix<f64>,
+}
+
+/// Levenberg–Marquardt from each start; the best end point wins.
+pub fn fit(model: &Model, data: &Data, rows: &[usize], starts: &[Vec<f64>], max_iter: usize) -> Fit {
+    let mut best: Option<Fit> = None;
+    for s in starts {
+        let f = lm(model, data, rows, s, max_iter);
+        if best.as_ref().is_none_or(|b| f.ssr < b.ssr) {
+            best = Some(f);
+        }
+    }
+    best.unwrap_or_else(|| lm(model, data, rows, &vec![0.0; model.n_params()], max_iter))
+}
+
+fn lm(model: &Model, data: &Data, rows: &[usize], start: &[f64], max_iter: usize) -> Fit {
+    let bounds = model.bounds();
+    let clamp = |x: &mut Vec<f64>| {
+        for (v, (lo, hi)) in x.iter_mut().zip(&bounds) {
+            *v = v.clamp(*lo, *hi);
+        }
+    };
+    let mut x = start.to_vec();
+    clamp(&mut x);
+    let mut r = model.weighted_resid(&x, data, rows);
+    let mut ssr: f64 = r.iter().map(|v| v * v).sum();
+    let mut lambda = 1e-3;
+    let n = x.len();
+    let mut j = model.jacobian(&x, data, rows, &r);
+    for _ in 0..max_iter {
+        let jt = j.transpose();
+        let a = &jt * &j;
+        let g = &jt * DVector::from_vec(r.clone());
+        let mut improved = false;
+        let mut tiny_step = false;
+        while lambda < 1e12 {
+            let mut m = a.clone();
+            for k in 0..n {
+                m[(k, k)] += lambda * a[(k, k)].max(1e-12) + 1e-15;
+            }
+            let Some(step) = m.lu().solve(&(-&g)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let mut xn: Vec<f64> = x.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
+            clamp(&mut xn);
+            let moved: f64 = xn.iter().zip(&x).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            let rn = model.weighted_resid(&xn, data, rows);
+            let sn: f64 = rn.iter().map(|v| v * v).sum();
+            if sn < ssr {
+                let rel = (ssr - sn) / ssr.max(1e-300);
+                x = xn;
+                r = rn;
+                ssr = sn;
+                lambda = (lambda / 4.0).max(1e-9);
+                improved = true;
+                tiny_step = rel < 1e-10 || moved < 1e-12;
+                break;
+            }
+            lambda *= 5.0;
+        }
+        if !improved || tiny_step {
+            break;
+        }
+        j = model.jacobian(&x, data, rows, &r);
+    }
+    let jac = model.jacobian(&x, data, rows, &r);
+    Fit { x, ssr, resid: r, jac }
+}
+
+/// Covariance of the parameters at a fit for a noise scale `s` (weighted units).
+pub fn covariance(fit: &Fit, s: f64) -> Option<DMatrix<f64>> {
+    let a = fit.jac.transpose() * &fit.jac;
+    a.try_inverse().map(|inv| inv * (s * s))
+}

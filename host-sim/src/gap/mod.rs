@@ -1,0 +1,703 @@
+//! The model-gap workflow: calibrate the base model to measured steady speeds, detect structure
+//! the noise cannot explain, name the missing effect(s) from the library of `crate::effects`, add
+//! them one at a time, and show how much of the gap they explain.
+//!
+//! Statistics (all in weighted units, weights `|v| + 0.25·v̄`, noise scale `s` from
+//! difference-based pseudo-residuals along load within each measured curve):
+//! - consistency: `R = (SSR/(n − p))/s²`; below [`Options::consistent_ratio`] the residuals are
+//!   noise and nothing is missing;
+//! - score: Rao's score statistic of each candidate's strength at zero, after projecting out what
+//!   the current parameters can explain (one-sided where the strength is one-sided);
+//! - likelihood ratio `LR = (SSR₀ − SSR₁)/s²`, `ΔBIC = LR − k·ln n`;
+//! - cross-validation: K folds of held-out operating curves (preload, voltage, frequency,
+//!   direction); improvement = 1 − RMS_cv(with)/RMS_cv(without).
+
+pub mod fit;
+pub mod report;
+
+use crate::effects::{Condition, EFFECT_NAMES};
+use crate::measured_csv::MeasuredRow;
+use crate::params::Params;
+use anyhow::{bail, Context, Result};
+use fit::{
+    covariance, effect_params, fit as lm_fit, named_values, Data, Fit, Model, BASE_NAMES, BASE_PARAMS,
+};
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// Decision thresholds of the workflow.
+#[derive(Debug, Clone)]
+pub struct Options {
+    pub max_effects: usize,
+    pub folds: usize,
+    /// Residual variance over noise variance below which nothing is missing.
+    pub consistent_ratio: f64,
+    /// Minimum ΔBIC of a refit with the candidate.
+    pub min_delta_bic: f64,
+    /// Minimum relative improvement of the cross-validated RMS.
+    pub min_cv_improvement: f64,
+    /// ΔBIC margin within which candidates form an ambiguity group (candidates whose refits both
+    /// leave residuals consistent with noise are grouped whatever their ΔBIC).
+    pub ambiguity_bic: f64,
+    /// Which effects the library offers (default: all).
+    pub library: Vec<&'static str>,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            max_effects: 3,
+            folds: 5,
+            consistent_ratio: 2.0,
+            min_delta_bic: 10.0,
+            min_cv_improvement: 0.15,
+            ambiguity_bic: 10.0,
+            library: EFFECT_NAMES.to_vec(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct NamedParam {
+    pub name: String,
+    pub value: f64,
+    pub std_dev: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Candidate {
+    pub name: String,
+    /// Round of the workflow (1 = against the calibrated base model).
+    pub round: usize,
+    /// Score statistic at zero strength (χ², larger = more of the residual it could explain).
+    pub score: f64,
+    pub score_rank: usize,
+    /// Likelihood ratio of the refit with the candidate.
+    pub lr: f64,
+    pub delta_bic: f64,
+    /// Relative improvement of the held-out (cross-validated) RMS.
+    pub cv_improvement: f64,
+    /// Gap (RMS/mean) of the refit.
+    pub gap: f64,
+    /// Residual variance / noise variance of the refit (below the threshold: explains the data).
+    pub consistency: f64,
+    pub accepted: bool,
+    pub params: Vec<NamedParam>,
+    #[serde(skip)]
+    pub fit_x: Vec<f64>,
+    #[serde(skip)]
+    pub pred: Vec<f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Experiment {
+    pub preload_n: f64,
+    pub voltage_v: f64,
+    pub frequency_hz: f64,
+    pub load_n: f64,
+    pub direction: i8,
+    /// Predicted speeds of each group member's fitted model there (mm/s), in group order.
+    pub predicted_mm_s: Vec<f64>,
+    /// Largest predicted difference in units of the noise there.
+    pub separation_sigma: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Ambiguity {
+    pub round: usize,
+    pub effects: Vec<String>,
+    pub delta_bic: Vec<f64>,
+    pub separating_experiment: Option<Experiment>,
+}
+
+/// A named effect with its parameters from the final refit (all accepted effects together).
+#[derive(Debug, Clone, Serialize)]
+pub struct FinalEffect {
+    pub name: String,
+    pub params: Vec<NamedParam>,
+}
+
+/// Residual structure against one condition: the spread of the mean weighted residual between
+/// the condition's levels, as χ² per degree of freedom in units of the noise (≈ 1: no structure).
+#[derive(Debug, Clone, Serialize)]
+pub struct Structure {
+    pub condition: String,
+    pub levels: usize,
+    pub chi2_per_dof_before: f64,
+    pub chi2_per_dof_after: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Removed {
+    pub name: String,
+    pub round: usize,
+    pub delta_bic_kept: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct BaseFit {
+    pub name: String,
+    pub file_value: f64,
+    pub fitted: f64,
+    pub std_dev: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct GapReport {
+    pub rows: usize,
+    pub gap_before: f64,
+    pub gap_after: f64,
+    pub named_effects: Vec<String>,
+    /// The named effects' parameters from the final fit (with one-sigma uncertainties).
+    pub final_effects: Vec<FinalEffect>,
+    pub candidates: Vec<Candidate>,
+    pub ambiguity: Vec<Ambiguity>,
+    /// Residual structure by condition (preload, voltage, frequency, load level, direction).
+    pub residual_structure: Vec<Structure>,
+    pub removed: Vec<Removed>,
+    /// Noise estimate, mm/s at the mean speed (difference-based, base fit).
+    pub noise_mm_s: f64,
+    /// Residual variance / noise variance of the calibrated base model and of the final model.
+    pub consistency_before: f64,
+    pub consistency_after: f64,
+    pub nothing_missing: bool,
+    pub base_calibration: Vec<BaseFit>,
+    pub final_calibration: Vec<BaseFit>,
+    pub elapsed_s: f64,
+    #[serde(skip)]
+    pub pred_before_mm_s: Vec<f64>,
+    #[serde(skip)]
+    pub pred_after_mm_s: Vec<f64>,
+    #[serde(skip)]
+    pub fitted_params: Option<Params>,
+}
+
+struct State {
+    model: Model,
+    fit: Fit,
+    s: f64,
+    ratio: f64,
+}
+
+fn base_starts(n: usize) -> Vec<Vec<f64>> {
+    let combos = [[0.0, 0.0, 0.0], [0.2, -0.2, 0.0], [-0.2, 0.2, 0.0], [0.0, 0.2, -0.2], [0.0, -0.2, 0.2]];
+    combos
+        .iter()
+        .map(|c| {
+            let mut v = vec![0.0; n];
+            v[..BASE_PARAMS].copy_from_slice(c);
+            v
+        })
+        .collect()
+}
+
+/// Starting points for `model + name` from a fit of `model` (its x) and the candidate's starts.
+fn candidate_starts(x0: &[f64], name: &str, data: &Data) -> Vec<Vec<f64>> {
+    let defs = effect_params(name);
+    let mut starts = Vec::new();
+    if name == "preload_dependent_friction" {
+        let mut pre: Vec<f64> = data.conds.iter().map(|c| c.preload_n).collect();
+        pre.sort_by(f64::total_cmp);
+        pre.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+        let mut knees: Vec<f64> = pre.windows(2).map(|w| 0.5 * (w[0] + w[1])).collect();
+        if let Some(first) = pre.first() {
+            knees.push(0.5 * first);
+        }
+        let mut v = x0.to_vec();
+        v.push(0.0);
+        v.push(defs[1].zero);
+        starts.push(v);
+        for k in knees {
+            let mut v = x0.to_vec();
+            v.push(defs[0].starts[0]);
+            v.push(k);
+            starts.push(v);
+        }
+        return starts;
+    }
+    // The current fit with the effect at zero is always one start, so a refit never ends worse.
+    for s in std::iter::once(defs[0].zero).chain(defs[0].starts.iter().copied()) {
+        let mut v = x0.to_vec();
+        v.push(s);
+        starts.push(v);
+    }
+    starts
+}
+
+fn all_rows(data: &Data) -> Vec<usize> {
+    (0..data.len()).collect()
+}
+
+fn ratio(fit: &Fit, n: usize, p: usize, s: f64) -> f64 {
+    fit.ssr / (n.saturating_sub(p).max(1) as f64) / (s * s)
+}
+
+/// Score statistic of adding `name` to the model at its fit.
+fn score(state: &State, name: &str, data: &Data) -> f64 {
+    let rows = all_rows(data);
+    let defs = effect_params(name);
+    let jb = &state.fit.jac;
+    let r = DMatrix::from_column_slice(rows.len(), 1, &state.fit.resid);
+    let a = jb.transpose() * jb;
+    let Some(a_inv) = a.try_inverse() else { return 0.0 };
+    let mut ext = state.model.clone();
+    ext.effects.push(leak(name));
+    let knees: Vec<f64> = if name == "preload_dependent_friction" {
+        candidate_starts(&state.fit.x, name, data).iter().map(|s| s[s.len() - 1]).collect()
+    } else {
+        vec![0.0]
+    };
+    let mut best: f64 = 0.0;
+    for knee in knees {
+        let mut x = state.fit.x.clone();
+        x.push(defs[0].zero);
+        if defs.len() > 1 {
+            x.push(knee);
+        }
+        let k = state.model.n_params();
+        let span = defs[0].hi - defs[0].lo;
+        let h = 1e-4 * span;
+        let mut xp = x.clone();
+        xp[k] += h;
+        let p0 = ext.predict(&x, data, &rows);
+        let p1 = ext.predict(&xp, data, &rows);
+        let mut jc = DMatrix::zeros(rows.len(), 1);
+        for i in 0..rows.len() {
+            jc[(i, 0)] = (p1[i] - p0[i]) / h / data.sigma[i];
+        }
+        let proj = jb * (&a_inv * (jb.transpose() * &jc));
+        let jperp = jc - proj;
+        let u = (jperp.transpose() * &r)[(0, 0)];
+        let info = (jperp.transpose() * &jperp)[(0, 0)];
+        if info <= 0.0 {
+            continue;
+        }
+        // d SSR/dθ = 2·J⊥ᵀr: one-sided strengths only count a decrease for θ > 0.
+        let one_sided = defs[0].lo >= defs[0].zero;
+        if one_sided && u > 0.0 {
+            continue;
+        }
+        best = best.max(u * u / info / (state.s * state.s));
+    }
+    best
+}
+
+/// Effect names are `'static` in the library; map any borrowed name back to it.
+fn leak(name: &str) -> &'static str {
+    EFFECT_NAMES.iter().copied().find(|n| *n == name).unwrap_or("rail_friction")
+}
+
+/// K-fold cross-validated weighted RMS over held-out curves, warm-started from `x0`.
+fn cv_rms(model: &Model, data: &Data, x0: &[f64], folds: usize) -> f64 {
+    let k = folds.clamp(2, data.n_curves.max(2));
+    let fold_of = |c: usize| (c * 7 + 3) % k;
+    let mut sum = 0.0;
+    let mut count = 0usize;
+    for f in 0..k {
+        let train: Vec<usize> = (0..data.len()).filter(|&i| fold_of(data.curve[i]) != f).collect();
+        let test: Vec<usize> = (0..data.len()).filter(|&i| fold_of(data.curve[i]) == f).collect();
+        if test.is_empty() || train.len() <= model.n_params() {
+            continue;
+        }
+        let fit = lm_fit(model, data, &train, &[x0.to_vec()], 40);
+        let pred = model.predict(&fit.x, data, &test);
+        for (&i, p) in test.iter().zip(pred) {
+            sum += ((p - data.y[i]) / data.sigma[i]).powi(2);
+            count += 1;
+        }
+    }
+    (sum / count.max(1) as f64).sqrt()
+}
+
+fn effect_named_params(model: &Model, fit: &Fit, name: &str, s: f64) -> Vec<NamedParam> {
+    let Some(off) = model.offset(name) else { return Vec::new() };
+    let k = effect_params(name).len();
+    let x = &fit.x[off..off + k];
+    let cov = covariance(fit, s);
+    let named = named_values(name, x);
+    named
+        .iter()
+        .enumerate()
+        .map(|(j, (pname, v))| {
+            // Delta method through the internal → named map, by finite differences.
+            let mut var = 0.0;
+            if let Some(c) = &cov {
+                let grads: Vec<f64> = (0..k)
+                    .map(|m| {
+                        let h = 1e-6 * (effect_params(name)[m].hi - effect_params(name)[m].lo);
+                        let mut xp = x.to_vec();
+                        xp[m] += h;
+                        (named_values(name, &xp)[j].1 - v) / h
+                    })
+                    .collect();
+                for a in 0..k {
+                    for b in 0..k {
+                        var += grads[a] * grads[b] * c[(off + a, off + b)];
+                    }
+                }
+            }
+            NamedParam { name: (*pname).to_string(), value: *v, std_dev: var.max(0.0).sqrt() }
+        })
+        .collect()
+}
+
+fn base_calibration(model: &Model, fit: &Fit, s: f64) -> Vec<BaseFit> {
+    let cov = covariance(fit, s);
+    let file = [
+        model.base.friction.mu_dynamic,
+        model.base.stator.tangential_scale,
+        model.base.stator.normal_force_ratio,
+    ];
+    (0..BASE_PARAMS)
+        .map(|k| {
+            let v = file[k] * fit.x[k].exp();
+            let sd = cov.as_ref().map_or(f64::NAN, |c| c[(k, k)].max(0.0).sqrt() * v);
+            BaseFit { name: BASE_NAMES[k].to_string(), file_value: file[k], fitted: v, std_dev: sd }
+        })
+        .collect()
+}
+
+/// The experiment (from a grid spanning and extending the measured ranges) where the group's
+/// fitted models disagree most, in units of the expected noise there.
+fn separating_experiment(group: &[&Candidate], model: &Model, data: &Data, s: f64) -> Option<Experiment> {
+    let span = |f: fn(&Condition) -> f64| {
+        let lo = data.conds.iter().map(f).fold(f64::INFINITY, f64::min);
+        let hi = data.conds.iter().map(f).fold(f64::NEG_INFINITY, f64::max);
+        (lo, hi)
+    };
+    let (p_lo, p_hi) = span(|c| c.preload_n);
+    let (v_lo, v_hi) = span(|c| c.voltage_v);
+    let (f_lo, f_hi) = span(|c| c.frequency_hz);
+    let preloads = [0.5 * p_lo, p_lo, 0.5 * (p_lo + p_hi), p_hi, 1.25 * p_hi];
+    let voltages = [0.5 * v_lo, v_lo, v_hi];
+    let freqs = [500.0f64.min(f_lo), f_lo, 0.5 * (f_lo + f_hi), f_hi, 2200.0f64.max(f_hi)];
+    let models: Vec<(Model, Vec<f64>)> = group
+        .iter()
+        .map(|c| {
+            let mut m = model.clone();
+            m.effects.push(leak(&c.name));
+            (m, c.fit_x.clone())
+        })
+        .collect();
+    let mean = data.mean_speed().abs();
+    let mut best: Option<Experiment> = None;
+    for &preload_n in &preloads {
+        for &voltage_v in &voltages {
+            for &frequency_hz in &freqs {
+                for direction in [1i8, -1] {
+                    let c0 = Condition { preload_n, voltage_v, frequency_hz, load_n: 0.0, direction };
+                    let p0 = models[0].0.params_at(&models[0].1);
+                    let m0 = crate::effects::EffectModel::new(&p0, &c0);
+                    let stall = (m0.thrust_n(0.0) - m0.rail_coulomb_n).max(0.0);
+                    for frac in [0.0, 0.4, 0.75] {
+                        let c = Condition { load_n: frac * stall, ..c0 };
+                        let speeds: Vec<f64> = models
+                            .iter()
+                            .map(|(m, x)| crate::effects::model_speed_m_s(&m.params_at(x), &c))
+                            .collect();
+                        let hi = speeds.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                        let lo = speeds.iter().copied().fold(f64::INFINITY, f64::min);
+                        let sigma = s * (hi.abs() + fit::WEIGHT_FLOOR_OF_MEAN * mean);
+                        let sep = (hi - lo) / sigma.max(1e-15);
+                        if best.as_ref().is_none_or(|b| sep > b.separation_sigma) {
+                            best = Some(Experiment {
+                                preload_n,
+                                voltage_v,
+                                frequency_hz,
+                                load_n: c.load_n,
+                                direction,
+                                predicted_mm_s: speeds.iter().map(|v| v * 1e3).collect(),
+                                separation_sigma: sep,
+                            });
+                        }
+                    }
+                }
+            }
+        }
+    }
+    best
+}
+
+/// A row's level of one condition.
+type LevelKey<'a> = Box<dyn Fn(usize) -> i64 + 'a>;
+
+/// χ² per degree of freedom of the level means of the weighted residuals, per condition. The load
+/// level is a row's rank in load within its curve (the load fraction of a measured curve).
+fn structure(data: &Data, resid: &[f64], s: f64) -> Vec<(String, usize, f64)> {
+    let n = data.len();
+    let mut load_rank = vec![0i64; n];
+    for c in 0..data.n_curves {
+        let mut idx: Vec<usize> = (0..n).filter(|&i| data.curve[i] == c).collect();
+        idx.sort_by(|&a, &b| data.conds[a].load_n.total_cmp(&data.conds[b].load_n));
+        for (r, &i) in idx.iter().enumerate() {
+            load_rank[i] = r as i64;
+        }
+    }
+    let keys: [(&str, LevelKey); 5] = [
+        ("preload", Box::new(|i| (data.conds[i].preload_n * 1e3).round() as i64)),
+        ("voltage", Box::new(|i| (data.conds[i].voltage_v * 1e3).round() as i64)),
+        ("frequency", Box::new(|i| (data.conds[i].frequency_hz * 1e3).round() as i64)),
+        ("load level", Box::new(|i| load_rank[i])),
+        ("direction", Box::new(|i| i64::from(data.conds[i].direction))),
+    ];
+    keys.iter()
+        .map(|(name, key)| {
+            let mut groups: Vec<(i64, usize, f64)> = Vec::new();
+            for (i, r) in resid.iter().enumerate().take(n) {
+                let k = key(i);
+                match groups.iter_mut().find(|g| g.0 == k) {
+                    Some(g) => {
+                        g.1 += 1;
+                        g.2 += r;
+                    }
+                    None => groups.push((k, 1, *r)),
+                }
+            }
+            let chi2: f64 = groups.iter().map(|g| g.2 * g.2 / g.1 as f64).sum::<f64>() / (s * s);
+            let dof = groups.len().saturating_sub(1).max(1);
+            (name.to_string(), groups.len(), chi2 / dof as f64)
+        })
+        .collect()
+}
+
+/// Progress of the workflow: a stage label and (done, total) steps within it.
+pub type ProgressFn<'a> = &'a (dyn Fn(&str, usize, usize) + Sync);
+
+/// The whole workflow on measured rows. `progress` is told each stage and step.
+pub fn analyze(
+    base: &Params,
+    rows: &[MeasuredRow],
+    opts: &Options,
+    progress: ProgressFn,
+) -> Result<GapReport> {
+    let t0 = std::time::Instant::now();
+    let data = Data::from_rows(rows);
+    let n = data.len();
+    if n < 8 {
+        bail!("need at least 8 measured rows, got {n}");
+    }
+    if data.mean_speed() <= 0.0 {
+        bail!("the mean measured speed must be positive (the gap is relative to it)");
+    }
+    let all = all_rows(&data);
+    progress("calibrating the base model", 0, 1);
+    let base_model = Model { base: base.clone(), effects: Vec::new() };
+    let base_fit = lm_fit(&base_model, &data, &all, &base_starts(BASE_PARAMS), 100);
+    let (s0, m0) = data.noise_scale(&base_fit.resid);
+    let s0 = if m0 == 0 || !s0.is_finite() || s0 <= 0.0 {
+        // No curve with three loads: fall back to the residual scale (nothing can be detected).
+        (base_fit.ssr / (n - BASE_PARAMS) as f64).sqrt().max(1e-12)
+    } else {
+        s0
+    };
+    let pred_before = base_model.predict(&base_fit.x, &data, &all);
+    let gap_before = data.gap(&pred_before);
+    let ratio0 = ratio(&base_fit, n, BASE_PARAMS, s0);
+    let base_cal = base_calibration(&base_model, &base_fit, s0);
+    let structure_before = structure(&data, &base_fit.resid, s0);
+    let mut state = State { model: base_model, fit: base_fit, s: s0, ratio: ratio0 };
+    let mut candidates_out: Vec<Candidate> = Vec::new();
+    let mut ambiguity = Vec::new();
+    let mut removed = Vec::new();
+    let library: Vec<&'static str> =
+        opts.library.iter().copied().filter(|e| !base.effects.is_active(e)).collect();
+    let mut round = 0;
+    while state.model.effects.len() < opts.max_effects && state.ratio >= opts.consistent_ratio {
+        round += 1;
+        let todo: Vec<&'static str> =
+            library.iter().copied().filter(|e| !state.model.effects.contains(e)).collect();
+        if todo.is_empty() {
+            break;
+        }
+        let label = format!("round {round}: candidates scored and refitted");
+        progress(&label, 0, todo.len());
+        let done = std::sync::atomic::AtomicUsize::new(0);
+        let cv_without = cv_rms(&state.model, &data, &state.fit.x, opts.folds);
+        let mut cands: Vec<Candidate> = todo
+            .par_iter()
+            .map(|&name| {
+                let sc = score(&state, name, &data);
+                let mut m = state.model.clone();
+                m.effects.push(name);
+                let starts = candidate_starts(&state.fit.x, name, &data);
+                let f = lm_fit(&m, &data, &all, &starts, 60);
+                let k = effect_params(name).len() as f64;
+                let lr = (state.fit.ssr - f.ssr) / (state.s * state.s);
+                let cv_with = cv_rms(&m, &data, &f.x, opts.folds);
+                let pred = m.predict(&f.x, &data, &all);
+                let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+                progress(&label, d, todo.len());
+                Candidate {
+                    name: name.to_string(),
+                    round,
+                    score: sc,
+                    score_rank: 0,
+                    lr,
+                    delta_bic: lr - k * (n as f64).ln(),
+                    cv_improvement: 1.0 - cv_with / cv_without.max(1e-300),
+                    gap: data.gap(&pred),
+                    consistency: ratio(&f, n, m.n_params(), state.s),
+                    accepted: false,
+                    params: effect_named_params(&m, &f, name, state.s),
+                    fit_x: f.x.clone(),
+                    pred,
+                }
+            })
+            .collect();
+        let mut order: Vec<usize> = (0..cands.len()).collect();
+        order.sort_by(|&a, &b| cands[b].score.total_cmp(&cands[a].score));
+        for (rank, &i) in order.iter().enumerate() {
+            cands[i].score_rank = rank + 1;
+        }
+        cands.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
+        let eligible: Vec<usize> = (0..cands.len())
+            .filter(|&i| {
+                cands[i].delta_bic >= opts.min_delta_bic && cands[i].cv_improvement >= opts.min_cv_improvement
+            })
+            .collect();
+        let Some(&best) = eligible.first() else {
+            candidates_out.extend(cands);
+            break;
+        };
+        let group: Vec<usize> = eligible
+            .iter()
+            .copied()
+            .filter(|&i| {
+                cands[best].delta_bic - cands[i].delta_bic < opts.ambiguity_bic
+                    || (cands[best].consistency < opts.consistent_ratio
+                        && cands[i].consistency < opts.consistent_ratio)
+            })
+            .collect();
+        if group.len() > 1 {
+            let members: Vec<&Candidate> = group.iter().map(|&i| &cands[i]).collect();
+            ambiguity.push(Ambiguity {
+                round,
+                effects: members.iter().map(|c| c.name.clone()).collect(),
+                delta_bic: members.iter().map(|c| c.delta_bic).collect(),
+                separating_experiment: separating_experiment(&members, &state.model, &data, state.s),
+            });
+        }
+        cands[best].accepted = true;
+        let name = leak(&cands[best].name);
+        let mut model = state.model.clone();
+        model.effects.push(name);
+        let mut fit = lm_fit(&model, &data, &all, &[cands[best].fit_x.clone()], 40);
+        candidates_out.extend(cands);
+        // Re-test earlier effects: drop each and refit; remove it if it no longer pays its way.
+        let mut changed = true;
+        while changed {
+            changed = false;
+            for e in model.effects.clone() {
+                if e == name {
+                    continue;
+                }
+                let mut reduced = model.clone();
+                reduced.effects.retain(|x| *x != e);
+                let mut x: Vec<f64> = fit.x[..BASE_PARAMS].to_vec();
+                for r in &reduced.effects {
+                    let off = model.offset(r).unwrap_or(BASE_PARAMS);
+                    x.extend_from_slice(&fit.x[off..off + effect_params(r).len()]);
+                }
+                let f = lm_fit(&reduced, &data, &all, &[x], 60);
+                let k = effect_params(e).len() as f64;
+                let kept = (f.ssr - fit.ssr) / (state.s * state.s) - k * (n as f64).ln();
+                if kept < opts.min_delta_bic {
+                    removed.push(Removed { name: e.to_string(), round, delta_bic_kept: kept });
+                    model = reduced;
+                    fit = f;
+                    changed = true;
+                    break;
+                }
+            }
+        }
+        let (s, m) = data.noise_scale(&fit.resid);
+        let s = if m == 0 || !s.is_finite() || s <= 0.0 { state.s } else { s };
+        let r = ratio(&fit, n, model.n_params(), s);
+        state = State { model, fit, s, ratio: r };
+    }
+    let pred_after = state.model.predict(&state.fit.x, &data, &all);
+    let gap_after = data.gap(&pred_after);
+    let mut fitted = state.model.params_at(&state.fit.x);
+    let mut final_effects = Vec::new();
+    for e in &state.model.effects {
+        let params = effect_named_params(&state.model, &state.fit, e, state.s);
+        for np in &params {
+            fitted.effects.std_dev.insert(np.name.clone(), np.std_dev);
+        }
+        final_effects.push(FinalEffect { name: e.to_string(), params });
+    }
+    let mean_mm_s = data.mean_speed() * 1e3;
+    let structure_after = structure(&data, &state.fit.resid, state.s);
+    let residual_structure = structure_before
+        .into_iter()
+        .zip(structure_after)
+        .map(|((condition, levels, before), (_, _, after))| Structure {
+            condition,
+            levels,
+            chi2_per_dof_before: before,
+            chi2_per_dof_after: after,
+        })
+        .collect();
+    Ok(GapReport {
+        rows: n,
+        gap_before,
+        gap_after,
+        named_effects: state.model.effects.iter().map(|e| e.to_string()).collect(),
+        final_effects,
+        candidates: candidates_out,
+        ambiguity,
+        residual_structure,
+        removed,
+        noise_mm_s: s0 * (1.0 + fit::WEIGHT_FLOOR_OF_MEAN) * mean_mm_s,
+        consistency_before: ratio0,
+        consistency_after: state.ratio,
+        nothing_missing: state.model.effects.is_empty(),
+        base_calibration: base_cal,
+        final_calibration: base_calibration(&state.model, &state.fit, state.s),
+        elapsed_s: t0.elapsed().as_secs_f64(),
+        pred_before_mm_s: pred_before.iter().map(|v| v * 1e3).collect(),
+        pred_after_mm_s: pred_after.iter().map(|v| v * 1e3).collect(),
+        fitted_params: Some(fitted),
+    })
+}
+
+#[derive(clap::Args, Debug)]
+pub struct GapArgs {
+    /// Measured steady operating points (CSV: preload_n,voltage_v,frequency_hz,load_n,direction,velocity_mm_s).
+    #[arg(long, value_name = "FILE.csv")]
+    pub measured: PathBuf,
+    /// Directory for the report, plots and the updated parameter file.
+    #[arg(long, value_name = "DIR", default_value = "gap-report")]
+    pub out: PathBuf,
+    /// Print one JSON object instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: GapArgs, params: &Params) -> Result<()> {
+    let rows = crate::measured_csv::read(&args.measured)?;
+    let bar = indicatif::ProgressBar::new(1);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("gap {spinner} [{elapsed}] {bar:30} {pos}/{len} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    bar.enable_steady_tick(std::time::Duration::from_millis(120));
+    let report = analyze(params, &rows, &Options::default(), &|msg: &str, done: usize, total: usize| {
+        bar.set_message(msg.to_string());
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })?;
+    bar.finish_and_clear();
+    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
+    report::write_all(&report, &rows, params, &args.measured, &args.out)?;
+    if args.json {
+        use std::io::Write;
+        // A closed pipe (e.g. `| head`) is not an error of the workflow.
+        let _ = writeln!(std::io::stdout(), "{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        report::print_summary(&report, &args.out);
+    }
+    Ok(())
+}

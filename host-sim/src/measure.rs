@@ -1,0 +1,262 @@
+//! `host-sim measure`: synthetic measured data from the time-domain plant with hidden effects,
+//! over a paper-like grid of steady operating points, with measurement noise.
+//!
+//! Noise model: each speed gets Gaussian noise of standard deviation
+//! `P/100 · (|v| + 0.25·v̄)`, where `v̄` is the mean noiseless speed of the data set (a relative
+//! error plus a floor, so near-stall points are not noise-free). Stalled points read 0.
+
+use crate::effects::{Condition, EffectModel, Effects};
+use crate::measured_csv::{to_csv_string, MeasuredRow};
+use crate::params::Params;
+use crate::plant::steady_speed_m_s;
+use anyhow::{anyhow, bail, Context, Result};
+use rand::rngs::StdRng;
+use rand::SeedableRng;
+use rand_distr::{Distribution, StandardNormal};
+use rayon::prelude::*;
+use std::path::PathBuf;
+
+/// Share of the noise floor in the noise model (see the module docs).
+pub const NOISE_FLOOR_OF_MEAN: f64 = 0.25;
+
+/// The operating points of a measurement campaign: every combination of the lists, loads as
+/// fractions of the (true) stall force at each drive point.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Grid {
+    pub preloads_n: Vec<f64>,
+    pub voltages_v: Vec<f64>,
+    pub frequencies_hz: Vec<f64>,
+    pub load_fractions: Vec<f64>,
+    pub directions: Vec<i8>,
+}
+
+impl Grid {
+    /// The paper-like grid: 5 preloads × 2 voltages × 3 frequencies × 5 loads × 2 senses = 300 rows.
+    pub fn paper() -> Self {
+        Grid {
+            preloads_n: vec![5.0, 8.0, 11.0, 14.0, 17.0],
+            voltages_v: vec![60.0, 100.0],
+            frequencies_hz: vec![900.0, 1500.0, 2100.0],
+            load_fractions: vec![0.0, 0.2, 0.4, 0.6, 0.75],
+            directions: vec![1, -1],
+        }
+    }
+
+    /// A smaller grid for quick checks: 4 × 2 × 3 × 4 × 2 = 192 rows.
+    pub fn compact() -> Self {
+        Grid {
+            preloads_n: vec![5.0, 9.0, 13.0, 17.0],
+            voltages_v: vec![60.0, 100.0],
+            frequencies_hz: vec![900.0, 1500.0, 2100.0],
+            load_fractions: vec![0.0, 0.25, 0.5, 0.7],
+            directions: vec![1, -1],
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.preloads_n.len()
+            * self.voltages_v.len()
+            * self.frequencies_hz.len()
+            * self.load_fractions.len()
+            * self.directions.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Conditions with loads resolved against the stall force of the steady-state model with
+    /// the given (true) effects.
+    pub fn conditions(&self, p: &Params) -> Vec<Condition> {
+        let mut out = Vec::with_capacity(self.len());
+        for &preload_n in &self.preloads_n {
+            for &voltage_v in &self.voltages_v {
+                for &frequency_hz in &self.frequencies_hz {
+                    for &direction in &self.directions {
+                        let c0 = Condition { preload_n, voltage_v, frequency_hz, load_n: 0.0, direction };
+                        let m = EffectModel::new(p, &c0);
+                        let stall = (m.thrust_n(0.0) - m.rail_coulomb_n).max(0.0);
+                        for &fr in &self.load_fractions {
+                            out.push(Condition { load_n: fr * stall, ..c0 });
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Noiseless plant speeds (mm/s) at each condition; both cores through rayon. `progress` is
+/// called from worker threads with the number of finished points.
+pub fn plant_speeds_mm_s(p: &Params, conds: &[Condition], progress: &(dyn Fn() + Sync)) -> Vec<f64> {
+    conds
+        .par_iter()
+        .map(|c| {
+            let v =
+                steady_speed_m_s(p, c.preload_n, c.voltage_v, c.frequency_hz, c.direction, c.load_n) * 1e3;
+            progress();
+            v
+        })
+        .collect()
+}
+
+/// Adds the noise model of the module docs; stalled points (|v| < 1 nm/s) read exactly 0.
+pub fn with_noise(conds: &[Condition], speeds_mm_s: &[f64], noise_pct: f64, seed: u64) -> Vec<MeasuredRow> {
+    let mut rng = StdRng::seed_from_u64(seed);
+    let mean = speeds_mm_s.iter().map(|v| v.abs()).sum::<f64>() / speeds_mm_s.len().max(1) as f64;
+    conds
+        .iter()
+        .zip(speeds_mm_s)
+        .enumerate()
+        .map(|(i, (c, &v))| {
+            let z: f64 = StandardNormal.sample(&mut rng);
+            let stalled = v.abs() < 1e-6;
+            let sigma = noise_pct / 100.0 * (v.abs() + NOISE_FLOOR_OF_MEAN * mean);
+            MeasuredRow {
+                line: i + 2,
+                preload_n: c.preload_n,
+                voltage_v: c.voltage_v,
+                frequency_hz: c.frequency_hz,
+                load_n: c.load_n,
+                direction: c.direction,
+                velocity_mm_s: if stalled { 0.0 } else { v + sigma * z },
+            }
+        })
+        .collect()
+}
+
+/// The whole synthetic measurement: plant with the hidden effects of `p`, noise, rows.
+pub fn synthesize(
+    p: &Params,
+    grid: &Grid,
+    noise_pct: f64,
+    seed: u64,
+    progress: &(dyn Fn() + Sync),
+) -> Vec<MeasuredRow> {
+    let conds = grid.conditions(p);
+    let speeds = plant_speeds_mm_s(p, &conds, progress);
+    with_noise(&conds, &speeds, noise_pct, seed)
+}
+
+/// Parses `NAME:param=value[,param=value]` into `effects`.
+pub fn parse_effect_spec(spec: &str, effects: &mut Effects) -> Result<()> {
+    let (name, rest) = spec
+        .split_once(':')
+        .ok_or_else(|| anyhow!("--effect '{spec}': expected NAME:param=value[,param=value]"))?;
+    if !crate::effects::EFFECT_NAMES.contains(&name) {
+        bail!(
+            "--effect '{spec}': unknown effect '{name}' (known: {})",
+            crate::effects::EFFECT_NAMES.join(", ")
+        );
+    }
+    for kv in rest.split(',') {
+        let (k, v) = kv
+            .split_once('=')
+            .ok_or_else(|| anyhow!("--effect '{spec}': expected param=value, got '{kv}'"))?;
+        let (k, v) = (k.trim(), v.trim());
+        if !crate::effects::PARAM_NAMES.iter().any(|(e, n)| *e == name && *n == k) {
+            bail!("--effect '{spec}': '{k}' is not a parameter of {name}");
+        }
+        let value: f64 = v.parse().map_err(|_| anyhow!("--effect '{spec}': '{v}' is not a number"))?;
+        effects.set(k, value)?;
+    }
+    Ok(())
+}
+
+#[derive(clap::Args, Debug)]
+pub struct MeasureArgs {
+    /// Hidden effect, NAME:param=value[,param=value]; repeat for several.
+    #[arg(long = "effect", value_name = "NAME:param=value")]
+    pub effects: Vec<String>,
+    /// Measurement noise, percent of each speed (plus a floor of a quarter of the mean speed).
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    pub noise_pct: f64,
+    /// Random seed of the noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Grid of operating points: `paper` (300 rows) or `compact` (192 rows).
+    #[arg(long, default_value = "paper")]
+    pub grid: String,
+    /// Override the grid's preloads (N), comma-separated.
+    #[arg(long, value_delimiter = ',', value_name = "N,N,...")]
+    pub preloads_n: Option<Vec<f64>>,
+    /// Override the grid's voltages (V peak-to-peak).
+    #[arg(long, value_delimiter = ',', value_name = "V,V,...")]
+    pub voltages_v: Option<Vec<f64>>,
+    /// Override the grid's frequencies (Hz).
+    #[arg(long, value_delimiter = ',', value_name = "HZ,HZ,...")]
+    pub frequencies_hz: Option<Vec<f64>>,
+    /// Override the loads, as fractions of the stall force at each drive point (0 to <1).
+    #[arg(long, value_delimiter = ',', value_name = "F,F,...")]
+    pub load_fractions: Option<Vec<f64>>,
+    /// Override the drive senses (1, -1 or both).
+    #[arg(long, value_delimiter = ',', allow_negative_numbers = true, value_name = "D,D")]
+    pub directions: Option<Vec<i8>>,
+    /// Output CSV file.
+    #[arg(long, value_name = "FILE.csv")]
+    pub out: PathBuf,
+}
+
+pub fn run(args: MeasureArgs, params: &Params) -> Result<()> {
+    let mut p = params.clone();
+    for spec in &args.effects {
+        parse_effect_spec(spec, &mut p.effects)?;
+    }
+    p.validate()?;
+    if !(args.noise_pct.is_finite() && (0.0..=50.0).contains(&args.noise_pct)) {
+        bail!("--noise-pct must be in [0, 50], got {}", args.noise_pct);
+    }
+    let mut grid = match args.grid.as_str() {
+        "paper" => Grid::paper(),
+        "compact" => Grid::compact(),
+        g => bail!("--grid must be 'paper' or 'compact', got '{g}'"),
+    };
+    let range = p.amplifier.output_max_v - p.amplifier.output_min_v;
+    let check = |name: &str, v: &[f64], ok: &dyn Fn(f64) -> bool| -> Result<()> {
+        if v.is_empty() || v.iter().any(|x| !x.is_finite() || !ok(*x)) {
+            bail!("--{name}: every value must be in range, got {v:?}");
+        }
+        Ok(())
+    };
+    if let Some(v) = args.preloads_n {
+        check("preloads-n", &v, &|x| x > 0.0 && x <= 60.0)?;
+        grid.preloads_n = v;
+    }
+    if let Some(v) = args.voltages_v {
+        check("voltages-v", &v, &|x| x > 0.0 && x <= range)?;
+        grid.voltages_v = v;
+    }
+    if let Some(v) = args.frequencies_hz {
+        check("frequencies-hz", &v, &|x| x > 0.0 && x <= 0.1 * p.amplifier.dac_rate_hz)?;
+        grid.frequencies_hz = v;
+    }
+    if let Some(v) = args.load_fractions {
+        check("load-fractions", &v, &|x| (0.0..1.0).contains(&x))?;
+        grid.load_fractions = v;
+    }
+    if let Some(v) = args.directions {
+        if v.is_empty() || v.iter().any(|d| *d != 1 && *d != -1) {
+            bail!("--directions: each must be 1 or -1, got {v:?}");
+        }
+        grid.directions = v;
+    }
+    let bar = indicatif::ProgressBar::new(grid.len() as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("measure {bar:40} {pos}/{len} operating points ({eta})")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let rows = synthesize(&p, &grid, args.noise_pct, args.seed, &|| bar.inc(1));
+    bar.finish_and_clear();
+    let hidden = p.effects.active();
+    let mut text = format!(
+        "# host-sim measure: plant with hidden effects [{}], noise {} %, seed {}\n",
+        hidden.join(", "),
+        args.noise_pct,
+        args.seed
+    );
+    text.push_str(&to_csv_string(&rows));
+    std::fs::write(&args.out, text).with_context(|| format!("cannot write {}", args.out.display()))?;
+    eprintln!("{} operating points written to {}", rows.len(), args.out.display());
+    Ok(())
+}

@@ -1,0 +1,192 @@
+//! The effect library as modules of the plant and the steady-state model: exact reduction to the
+//! base model at zero, closed forms, and the plant agreeing with the steady-state model with each
+//! effect switched on (two independent formulations, time domain and period average).
+
+use host_sim::effects::{model_speed_m_s, Condition, EffectModel, EFFECT_NAMES};
+use host_sim::params::Params;
+use host_sim::plant::steady_speed_m_s;
+use host_sim::steady::{OperatingPoint, ThrustModel};
+
+fn cond(preload_n: f64, voltage_v: f64, frequency_hz: f64, load_n: f64, direction: i8) -> Condition {
+    Condition { preload_n, voltage_v, frequency_hz, load_n, direction }
+}
+
+/// A strength parameter and a value for each effect.
+const HIDDEN: [(&str, f64); 7] = [
+    ("rail_coulomb_n", 0.5),
+    ("asymmetry_fraction", 0.1),
+    ("mu_drop_per_n", 0.05),
+    ("stribeck_rise", 1.5),
+    ("rolloff_corner_hz", 2500.0),
+    ("resonance_strength", 0.3),
+    ("hertz_exponent", 1.0 / 3.0),
+];
+
+#[test]
+fn without_effects_the_model_is_the_base_thrust_model() {
+    let p = Params::prototype();
+    for (f0, v, f, frac, dir) in
+        [(16.0, 100.0, 1500.0, 0.0, 1), (10.0, 60.0, 900.0, 0.5, -1), (5.0, 100.0, 2100.0, 0.8, 1)]
+    {
+        let m = ThrustModel::new(&p, OperatingPoint { preload_n: f0, voltage_v: v, frequency_hz: f });
+        let load = frac * m.stall_force_n();
+        let base = m.speed_at_load_m_s(load).unwrap();
+        let ours = model_speed_m_s(&p, &cond(f0, v, f, load, dir));
+        assert!((ours - base).abs() < 1e-9 * base.abs().max(1e-6), "{ours} vs {base}");
+    }
+}
+
+#[test]
+fn every_effect_at_zero_strength_reduces_exactly_to_the_base_model_in_model_and_plant() {
+    let p = Params::prototype();
+    let c = cond(12.0, 80.0, 1300.0, 1.0, -1);
+    let base_model = model_speed_m_s(&p, &c);
+    let base_plant = steady_speed_m_s(&p, c.preload_n, c.voltage_v, c.frequency_hz, c.direction, c.load_n);
+    for (name, _) in HIDDEN {
+        let mut q = p.clone();
+        // The section is present, with its strength at zero (rolloff: corner 0 = none).
+        q.effects.set(name, 0.0).unwrap();
+        assert!(!q.effects.is_none());
+        assert_eq!(model_speed_m_s(&q, &c), base_model, "{name}: model");
+        let plant = steady_speed_m_s(&q, c.preload_n, c.voltage_v, c.frequency_hz, c.direction, c.load_n);
+        assert_eq!(plant, base_plant, "{name}: plant");
+    }
+    assert_eq!(EFFECT_NAMES.len(), HIDDEN.len());
+}
+
+#[test]
+fn rail_coulomb_friction_adds_exactly_to_the_load_and_stalls_below_it() {
+    let p = Params::prototype();
+    let mut q = p.clone();
+    q.effects.set("rail_coulomb_n", 0.7).unwrap();
+    let m = ThrustModel::new(&p, OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 });
+    for load in [0.0, 1.0, 2.5] {
+        let expect = m.speed_at_load_m_s(load + 0.7).unwrap();
+        let got = model_speed_m_s(&q, &cond(16.0, 100.0, 1500.0, load, 1));
+        assert!((got - expect).abs() < 1e-9 * expect, "load {load}: {got} vs {expect}");
+    }
+    // Between stall − c and stall + c the guide holds the slider: speed exactly 0.
+    let stall = m.stall_force_n();
+    assert_eq!(model_speed_m_s(&q, &cond(16.0, 100.0, 1500.0, stall - 0.5, 1)), 0.0);
+    assert_eq!(model_speed_m_s(&q, &cond(16.0, 100.0, 1500.0, stall + 0.5, 1)), 0.0);
+}
+
+#[test]
+fn asymmetry_scales_the_foot_speed_by_one_plus_a_times_the_direction() {
+    let p = Params::prototype();
+    let mut q = p.clone();
+    q.effects.set("asymmetry_fraction", 0.1).unwrap();
+    for (dir, factor) in [(1i8, 1.1), (-1, 0.9)] {
+        let mut r = p.clone();
+        r.stator.tangential_scale *= factor;
+        let m =
+            ThrustModel::new(&r, OperatingPoint { preload_n: 10.0, voltage_v: 100.0, frequency_hz: 1500.0 });
+        let expect = m.speed_at_load_m_s(1.0).unwrap();
+        let got = model_speed_m_s(&q, &cond(10.0, 100.0, 1500.0, 1.0, dir));
+        assert!((got - expect).abs() < 1e-9 * expect, "dir {dir}: {got} vs {expect}");
+    }
+}
+
+#[test]
+fn drive_gain_closed_forms_for_rolloff_and_resonance() {
+    let mut e = host_sim::effects::Effects::default();
+    e.set("rolloff_corner_hz", 2000.0).unwrap();
+    assert!((e.drive_gain(2000.0) - 0.5f64.sqrt()).abs() < 1e-12);
+    assert!((e.drive_gain(1000.0) - 1.0 / 1.25f64.sqrt()).abs() < 1e-12);
+    let mut r = host_sim::effects::Effects::default();
+    r.set("resonance_strength", 1.0).unwrap();
+    r.set("resonance_damping_ratio", 1e-9).unwrap();
+    // Full strength, no damping: the single-mode gain 1/(1 − (f/fr)²).
+    let x: f64 = 1500.0 / 3170.0;
+    assert!((r.drive_gain(1500.0) - 1.0 / (1.0 - x * x)).abs() < 1e-6);
+    assert!((r.drive_gain(1e-3) - 1.0).abs() < 1e-9);
+}
+
+#[test]
+fn preload_dependent_friction_and_hertz_follow_their_laws() {
+    let mut e = host_sim::effects::Effects::default();
+    e.set("mu_drop_per_n", 0.05).unwrap();
+    e.set("knee_preload_n", 10.0).unwrap();
+    assert_eq!(e.friction_factor(8.0), 1.0);
+    assert!((e.friction_factor(14.0) - 1.0 / 1.2).abs() < 1e-12);
+    let mut h = host_sim::effects::Effects::default();
+    h.set("hertz_exponent", 1.0 / 3.0).unwrap();
+    assert!((h.contact_stiffness_n_per_m(2e9, 2.0) - 1e9).abs() < 1e-3);
+}
+
+#[test]
+fn stribeck_thrust_matches_a_direct_period_average_of_the_same_law() {
+    let mut q = Params::prototype();
+    q.effects.set("stribeck_rise", 1.5).unwrap();
+    let vs = 3e-4;
+    for (f0, v_frac) in [(10.0, 0.0), (10.0, 0.5), (16.0, 0.8), (22.0, 0.3), (10.0, -0.3)] {
+        let em = EffectModel::new(&q, &cond(f0, 100.0, 1500.0, 0.0, 1));
+        let m = em.base;
+        let v = v_frac * m.foot_speed_m_s;
+        // Reference: midpoint sum over one period of μ(slip)·Fc·sign(slip) + εc·slip.
+        let n = 400_000;
+        let mut sum = 0.0;
+        for i in 0..n {
+            let phi = -std::f64::consts::PI + std::f64::consts::TAU * (i as f64 + 0.5) / n as f64;
+            let fc = m.contact_force_n(phi);
+            if fc <= 0.0 {
+                continue;
+            }
+            let slip = m.foot_speed_m_s * phi.cos() - v;
+            let mu = m.mu * (1.0 + 1.5 * (-(slip / vs).powi(2)).exp());
+            sum += mu * fc * slip.signum() + m.viscous_n_s_per_m * slip;
+        }
+        let reference = sum / n as f64;
+        let got = em.thrust_n(v);
+        assert!(
+            (got - reference).abs() < 2e-3 * m.mu * m.kc_yc_n,
+            "F0 {f0}, v {v_frac}: {got} vs {reference}"
+        );
+    }
+}
+
+/// The plant (time domain, each effect implemented in its own physical place) against the
+/// steady-state model with the same effect: within 5 % as for the base model (plant.rs test).
+#[test]
+fn plant_with_each_effect_agrees_with_the_steady_state_model_with_it() {
+    for (name, value) in HIDDEN {
+        let mut q = Params::prototype();
+        if name == "hertz_exponent" {
+            q.contact.stiffness_n_per_m = 2e7;
+        }
+        if name == "mu_drop_per_n" {
+            q.effects.set("knee_preload_n", 10.0).unwrap();
+        }
+        q.effects.set(name, value).unwrap();
+        for (f0, v, f, frac, dir) in [(14.0, 100.0, 2100.0, 0.4, 1i8), (8.0, 60.0, 1500.0, 0.5, -1)] {
+            let c0 = cond(f0, v, f, 0.0, dir);
+            let em = EffectModel::new(&q, &c0);
+            let load = frac * (em.thrust_n(0.0) - em.rail_coulomb_n);
+            let model = model_speed_m_s(&q, &Condition { load_n: load, ..c0 });
+            let plant = steady_speed_m_s(&q, f0, v, f, dir, load);
+            let base = model_speed_m_s(&Params::prototype(), &Condition { load_n: load, ..c0 });
+            let err = (plant - model) / model;
+            eprintln!("{name}: F0 {f0} {v} V {f} Hz dir {dir}: model {model:.6e} plant {plant:.6e} ({:.2} %), base model {base:.6e}", 100.0 * err);
+            assert!(err.abs() < 0.05, "{name} at F0 {f0}, {f} Hz: model {model} plant {plant}");
+        }
+    }
+}
+
+#[test]
+fn effects_section_round_trips_through_toml_and_rejects_bad_values() {
+    let mut p = Params::prototype();
+    p.effects.set("rail_coulomb_n", 0.25).unwrap();
+    p.effects.set("rolloff_corner_hz", 3000.0).unwrap();
+    p.effects.std_dev.insert("rail_coulomb_n".into(), 0.01);
+    let back = Params::from_toml(&p.to_toml()).unwrap();
+    assert_eq!(back, p);
+    // The shipped file has no effects section and still loads as the base model.
+    assert!(Params::prototype().effects.is_none());
+    let text =
+        format!("{}\n[effects.rail_friction]\nrail_coulomb_n = -1.0\n", host_sim::params::PROTOTYPE_TOML);
+    let e = Params::from_toml(&text).unwrap_err().to_string();
+    assert!(e.contains("rail_coulomb_n") && !e.contains('\n'), "{e}");
+    let text = format!("{}\n[effects.rail_friction]\nrail_coulomb = 1.0\n", host_sim::params::PROTOTYPE_TOML);
+    let e = Params::from_toml(&text).unwrap_err().to_string();
+    assert!(e.contains("unknown field") && !e.contains('\n'), "{e}");
+}
