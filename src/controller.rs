@@ -254,16 +254,7 @@ pub struct Controller {
 
 /// Highest speed from which a stop at `accel` ends within `distance` (v = √(2·a·d)).
 fn profile_speed(accel: f32, distance: f32) -> f32 {
-    let x = 2.0 * accel * distance;
-    if x.is_nan() || x <= 0.0 {
-        return 0.0;
-    }
-    // Newton from a power-of-two start: six steps reach f32 precision for any positive x.
-    let mut r = f32::from_bits((x.to_bits() >> 1) + 0x1fc0_0000);
-    for _ in 0..6 {
-        r = 0.5 * (r + x / r);
-    }
-    r
+    crate::fastmath::sqrt_f32(2.0 * accel * distance)
 }
 
 impl Controller {

@@ -41,6 +41,24 @@ impl DacConfig {
     }
 }
 
+/// Output levels in Q16 words: mid-range and the clamps.
+#[derive(Debug, Clone, Copy)]
+struct Levels {
+    mid: i32,
+    min: i32,
+    max: i32,
+}
+
+impl Levels {
+    #[inline(always)]
+    fn word(self, phase: u32, dc_q16: i32, amp_q16: i32) -> u16 {
+        // amplitude (< 2²⁸) × sine (Q30): one 32×32→64 multiply.
+        let ac = ((i64::from(amp_q16) * i64::from(sin_turn_q30(phase))) >> 30) as i32;
+        let v = (self.mid + dc_q16 + ac).clamp(self.min, self.max);
+        ((v + 32768) >> 16).clamp(0, i32::from(DacConfig::DAC_MAX_WORD)) as u16
+    }
+}
+
 /// Quadrature generator state. All internal quantities are DAC words in Q16, in i32: the whole
 /// 12-bit range is below 2²⁸, so sums of mid, offset and amplitude cannot overflow, and the
 /// per-sample arithmetic stays in single 32-bit instructions on the Cortex-M4.
@@ -210,42 +228,61 @@ impl QuadratureGenerator {
     /// Both channels' words at a phase, with the present amplitude and offsets.
     #[inline(always)]
     fn words_at(&self, phase: u32) -> [u16; 2] {
-        let quarter: u32 = 1 << 30;
-        let ph2 = if self.direction > 0 { phase.wrapping_sub(quarter) } else { phase.wrapping_add(quarter) };
         let [dc1, dc2] = self.static_q16;
-        [self.word(phase, dc1), self.word(ph2, dc2)]
+        let l = self.levels();
+        [l.word(phase, dc1, self.amp_q16), l.word(phase.wrapping_add(self.quadrature()), dc2, self.amp_q16)]
     }
 
+    /// Phase of channel 2 relative to channel 1: a quarter turn behind (+1) or ahead (−1).
     #[inline(always)]
-    fn word(&self, phase: u32, dc_q16: i32) -> u16 {
-        // amplitude (< 2²⁸) × sine (Q30): one 32×32→64 multiply.
-        let ac = ((i64::from(self.amp_q16) * i64::from(sin_turn_q30(phase))) >> 30) as i32;
-        let v = (self.mid_q16 + dc_q16 + ac).clamp(self.min_q16, self.max_q16);
-        ((v + 32768) >> 16).clamp(0, i32::from(DacConfig::DAC_MAX_WORD)) as u16
-    }
-
-    /// Nothing is slewing: every sample of a buffer uses the same amplitude and offsets.
-    fn steady(&self) -> bool {
-        self.pending_direction == self.direction
-            && self.amp_q16 == self.amp_target_q16
-            && self.static_q16 == self.static_target_q16
-    }
-
-    /// Fills a buffer of samples (e.g. one half of the circular DMA buffer).
-    pub fn fill(&mut self, buf: &mut [[u16; 2]]) {
-        if self.steady() {
-            // The common case in a steady drive: only the phase advances.
-            let mut phase = self.phase;
-            for s in buf.iter_mut() {
-                *s = self.words_at(phase);
-                phase = phase.wrapping_add(self.step);
-            }
-            self.phase = phase;
+    fn quadrature(&self) -> u32 {
+        let quarter: u32 = 1 << 30;
+        if self.direction > 0 {
+            quarter.wrapping_neg()
         } else {
+            quarter
+        }
+    }
+
+    fn levels(&self) -> Levels {
+        Levels { mid: self.mid_q16, min: self.min_q16, max: self.max_q16 }
+    }
+
+    /// Fills a buffer of samples (e.g. one half of the circular DMA buffer). The loop works on
+    /// local copies of the state so it runs in registers.
+    pub fn fill(&mut self, buf: &mut [[u16; 2]]) {
+        if self.pending_direction != self.direction {
+            // A direction change in progress: the general per-sample path.
             for s in buf.iter_mut() {
                 *s = self.next_words();
             }
+            return;
         }
+        let l = self.levels();
+        let (step, slew, amp_t, offset) = (self.step, self.slew_q16, self.amp_target_q16, self.quadrature());
+        let (mut phase, mut amp) = (self.phase, self.amp_q16);
+        let [mut dc1, mut dc2] = self.static_q16;
+        let [t1, t2] = self.static_target_q16;
+        if amp == amp_t && [dc1, dc2] == [t1, t2] {
+            // Nothing slewing (the common case in a steady drive): only the phase advances.
+            for s in buf.iter_mut() {
+                *s = [l.word(phase, dc1, amp), l.word(phase.wrapping_add(offset), dc2, amp)];
+                phase = phase.wrapping_add(step);
+            }
+            self.phase = phase;
+            return;
+        }
+        let [l1, l2] = self.static_step_q16.map(|s| if s > 0 { s.min(slew) } else { slew });
+        for s in buf.iter_mut() {
+            amp += (amp_t - amp).clamp(-slew, slew);
+            dc1 += (t1 - dc1).clamp(-l1, l1);
+            dc2 += (t2 - dc2).clamp(-l2, l2);
+            *s = [l.word(phase, dc1, amp), l.word(phase.wrapping_add(offset), dc2, amp)];
+            phase = phase.wrapping_add(step);
+        }
+        self.phase = phase;
+        self.amp_q16 = amp;
+        self.static_q16 = [dc1, dc2];
     }
 
     /// Lowest and highest word the configured range allows (for tests and supervision).

@@ -14,6 +14,7 @@
 
 pub mod controller;
 pub mod defaults;
+pub mod fastmath;
 pub mod gcs;
 pub mod generator;
 pub mod model;

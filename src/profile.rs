@@ -3,15 +3,7 @@
 //! acceleration limits. A new target (or new limits) mid-move is simply followed from the present
 //! position and velocity, so re-planning is continuous by construction.
 
-/// Integer square root of a non-negative f32 (exact to the unit), without std.
-fn sqrt_f32(x: f32) -> f32 {
-    if x.is_nan() || x <= 0.0 {
-        return 0.0;
-    }
-    // Scale by 2^8 (so ×2^4 on the root) to keep sub-unit resolution.
-    let scaled = (x * 256.0).min(1.8e19) as u64;
-    scaled.isqrt() as f32 / 16.0
-}
+use crate::fastmath::sqrt_f32;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Profile {

@@ -228,3 +228,21 @@ fn profile_respects_limits_reaches_the_target_and_replans() {
     }
     assert!(turned && p.done() && p.position_nm() == -200_000);
 }
+
+#[test]
+fn the_core_square_root_matches_std_to_f32_precision() {
+    use piezo_drive::fastmath::sqrt_f32;
+    let mut x = 1e-30f32;
+    while x < 1e30 {
+        for m in [1.0f32, 1.37, 2.0, 3.99] {
+            let v = x * m;
+            let (got, want) = (sqrt_f32(v), v.sqrt());
+            assert!((got - want).abs() <= 2.0 * f32::EPSILON * want, "√{v}: {got} vs {want}");
+        }
+        x *= 10.0;
+    }
+    assert_eq!(sqrt_f32(0.0), 0.0);
+    assert_eq!(sqrt_f32(-4.0), 0.0);
+    assert_eq!(sqrt_f32(f32::NAN), 0.0);
+    assert_eq!(sqrt_f32(f32::INFINITY), f32::INFINITY);
+}
