@@ -73,6 +73,13 @@ fn main() -> ! {
         k
     );
 
+    // The FPU square root (VSQRT through inline asm) on the Cortex-M4F: expect 1.4142135 0.001 0.
+    hprintln!(
+        "sqrt on the FPU: {} {} {}",
+        piezo_drive::fastmath::sqrt_f32(2.0),
+        piezo_drive::fastmath::sqrt_f32(1e-6),
+        piezo_drive::fastmath::sqrt_f32(-1.0)
+    );
     // The drive refill alone: 20 generator samples at full amplitude, packed and stored.
     let cfg = controller_config();
     let mut g = QuadratureGenerator::new(cfg.dac);
@@ -96,9 +103,14 @@ fn main() -> ! {
 
     // Controller step: a 1 mm move at 16 N preload with the encoder following the reference,
     // then holding.
-    let mut ctl = Controller::new(cfg).unwrap();
+    let mut cfg_ff = cfg;
+    // `NOFF=1 tools/m4-count/run`: the same move with plain PI feedback (feedforward off).
+    if option_env!("NOFF").is_some() {
+        cfg_ff.feedforward = false;
+    }
+    let mut ctl = Controller::new(cfg_ff).unwrap();
     let preload_word = (16.0 / cfg.preload.newton_per_word) as u16;
-    let mut inputs = Inputs { encoder_raw: 0, preload_word, index: false };
+    let mut inputs = Inputs { encoder_raw: 0, preload_word, ..Default::default() };
     let mut idle = Stat::new();
     for _ in 0..2_000 {
         idle.add(counts(|| {
@@ -149,9 +161,39 @@ fn main() -> ! {
             core::hint::black_box(core::hint::black_box(&point).thrust_n(v));
         }));
     }
+    let pv = m.at_frequency(f22);
+    let mut pt = Stat::new();
+    let mut inv2 = Stat::new();
+    for i in 0..500i32 {
+        let v = Fx::from_num(30 + i % 70);
+        pt.add(counts(|| {
+            core::hint::black_box(core::hint::black_box(&pv).point(p16, v));
+        }));
+        let sp = Fx::from_num(0.5) + Fx::from_num(i % 20) / 10;
+        inv2.add(counts(|| {
+            core::hint::black_box(pv.voltage_for(p16, sp, Fx::from_num(0.5), v100));
+        }));
+    }
+    pt.print("PerVolt::point", k);
+    let mut warm = Stat::new();
+    let mut th = Stat::new();
+    let mut hint = 50.0f32;
+    let pnt = pv.point(p16, v100);
+    for i in 0..2000i32 {
+        let sp = Fx::from_num(1.0) + Fx::from_num(i % 200) / 200;
+        warm.add(counts(|| {
+            hint = pv.voltage_near(p16, sp, Fx::from_num(0.5), v100, hint).to_num();
+        }));
+        th.add(counts(|| {
+            core::hint::black_box(core::hint::black_box(&pnt).thrust_n(sp));
+        }));
+    }
+    warm.print("PerVolt::voltage_near warm (speed ramps 1-2 mm/s)", k);
+    th.print("thrust_n", k);
+    inv2.print("PerVolt::voltage_for at 0.5-2.4 mm/s, 0.5 N", k);
     limits.print("Controller::thrust_limits (per call; the step calls it while active)", k);
-    inverse.print("MotorConstants::voltage_for (inverse model, 16-step bisection)", k);
-    speed.print("ThrustPoint::speed_at_load_mm_s (20-step bisection)", k);
+    inverse.print("MotorConstants::voltage_for (inverse model, cold start)", k);
+    speed.print("ThrustPoint::speed_at_load_mm_s (false position)", k);
     thrust.print("ThrustPoint::thrust_n (one model evaluation)", k);
     debug::exit(debug::EXIT_SUCCESS);
     loop {
