@@ -184,10 +184,17 @@ struct ModelCache {
     stall_n: f32,
     /// No-load speed at full drive (mm/s); NaN until computed for this point.
     no_load_mm_s: f32,
-    /// Speed at full drive against the estimated load in the direction of travel (mm/s).
+    /// Speed at full drive against the estimated load in the direction of travel (mm/s), and
+    /// the load it was computed for.
     speed_limit_mm_s: f32,
+    speed_limit_load_n: f32,
+    /// The point changed since the no-load speed was last computed.
+    no_load_stale: bool,
     tick: u32,
 }
+
+/// Load-estimate change (N) that recomputes the speed limit (a few µm/s of limit).
+const LOAD_RESOLVE_N: f32 = 0.005;
 
 /// Preload change (N) that rebuilds the cached model point: the model's limits change by well
 /// under 1 % over it, and the force cell's filtered noise stays below it.
@@ -202,6 +209,8 @@ impl ModelCache {
             stall_n: 0.0,
             no_load_mm_s: f32::NAN,
             speed_limit_mm_s: f32::NAN,
+            speed_limit_load_n: f32::NAN,
+            no_load_stale: true,
             tick: 0,
         }
     }
@@ -446,19 +455,30 @@ impl Controller {
             m.full = Some(p);
             m.preload_n = preload;
             m.stall_n = p.stall_force_n().to_num();
+            m.no_load_stale = true;
+            m.speed_limit_load_n = f32::NAN;
             if fresh {
                 m.no_load_mm_s = p.no_load_speed_mm_s().to_num();
                 m.speed_limit_mm_s = m.no_load_mm_s;
+                m.no_load_stale = false;
                 return;
             }
         }
         let Some(p) = m.full else { return };
+        // Each root only when its inputs moved, and never two in one period.
         match m.tick % 8 {
-            0 => m.no_load_mm_s = p.no_load_speed_mm_s().to_num(),
+            0 if m.no_load_stale => {
+                m.no_load_mm_s = p.no_load_speed_mm_s().to_num();
+                m.no_load_stale = false;
+            }
             4 => {
                 let dir = if self.profile.target_nm() >= self.profile.position_nm() { 1.0 } else { -1.0 };
                 let load = (dir * self.thrust_bias_n).max(0.0);
-                m.speed_limit_mm_s = p.speed_at_load_mm_s(Fx::saturating_from_num(load)).to_num();
+                let never = m.speed_limit_load_n.is_nan();
+                if never || (load - m.speed_limit_load_n).abs() > LOAD_RESOLVE_N {
+                    m.speed_limit_mm_s = p.speed_at_load_mm_s(Fx::saturating_from_num(load)).to_num();
+                    m.speed_limit_load_n = load;
+                }
             }
             _ => {}
         }

@@ -178,8 +178,9 @@ impl PerVolt {
                 Bracket { a: 0.0, fa: e0, b: down, fb: ed }
             }
         };
-        // The upper side of the final bracket: thrust reaches the load there.
-        let k = falling_root(excess, bracket, 0.01, 1e-4, 12);
+        // The upper side of the final bracket: thrust reaches the load there. Eight steps bound
+        // the worst period (a cold start over the whole range); warm starts need two or three.
+        let k = falling_root(excess, bracket, 0.01, 1e-4, 8);
         Fx::saturating_from_num(k.b).min(max_v)
     }
 }

@@ -122,13 +122,18 @@ fn main() -> ! {
     ctl.move_to(1_000_000).unwrap();
     let mut moving = Stat::new();
     let mut holding = Stat::new();
-    for _ in 0..8_000u32 {
+    let mut slow = 0;
+    for i in 0..8_000u32 {
         inputs.encoder_raw = (ctl.reference_nm() / 50) as u16;
         let was_moving = matches!(ctl.state(), piezo_drive::controller::State::Moving);
         let c = counts(|| {
             core::hint::black_box(ctl.step(core::hint::black_box(&inputs)));
         });
         if was_moving {
+            if c as f32 * k > 12_000.0 && slow < 12 {
+                slow += 1;
+                hprintln!("slowest moving ticks: #{} {} instructions, drive {} V", i, (c as f32 * k) as u32, ctl.drive_voltage_v());
+            }
             moving.add(c);
         } else {
             holding.add(c);
