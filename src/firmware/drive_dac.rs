@@ -20,7 +20,6 @@ use core::cell::UnsafeCell;
 use embassy_stm32::dac::{Dac, TriggerSel};
 use embassy_stm32::mode::Blocking;
 use embassy_stm32::pac;
-use embassy_stm32::pac::bdma::vals::{Dir, Pl, Size};
 use embassy_stm32::peripherals::{DAC1, DMA1_CH1, PA4, PA5, TIM6};
 use embassy_stm32::timer::low_level::Timer;
 use embassy_stm32::Peri;
@@ -28,9 +27,6 @@ use piezo_drive::controller::DAC_SAMPLES_PER_STEP;
 
 use super::ring::{self, HALF, SAMPLES};
 use super::{SAFE_DAC_WORD, SAMPLE_COUNTS};
-
-/// DMA1 channel 1 (index 0) and its DMAMUX1 channel (index 0).
-const DMA_CH: usize = 0;
 
 /// The circular buffer the DMA reads. Written only by the control tick (one writer, in an
 /// interrupt, in the half the DMA is not reading) and by `force_safe` in the panic handler with
@@ -74,25 +70,14 @@ impl Drive {
         dac.ch2().enable();
         pac::DAC1.cr().modify(|w| w.set_dmaen(0, true));
 
-        let ch = pac::DMA1.ch(DMA_CH);
-        ch.cr().write(|w| w.set_en(false));
         // DMAMUX request of DAC1 channel 1 (6 on the G474), from embassy's chip metadata.
         let request = <DMA1_CH1 as embassy_stm32::dac::Dma<DAC1, embassy_stm32::dac::Ch1>>::request(&dma);
-        pac::DMAMUX1.ccr(DMA_CH).write(|w| w.set_dmareq_id(request));
-        ch.par().write_value(pac::DAC1.dhr12rd().as_ptr() as u32);
-        ch.mar().write_value(buffer_ptr() as u32);
-        ch.ndtr().write(|w| w.set_ndt(SAMPLES as u16));
-        pac::DMA1.ifcr().write(|w| w.set_gif(DMA_CH, true));
-        ch.cr().write(|w| {
-            w.set_dir(Dir::FROM_MEMORY);
-            w.set_circ(true);
-            w.set_minc(true);
-            w.set_psize(Size::BITS32);
-            w.set_msize(Size::BITS32);
-            w.set_pl(Pl::VERY_HIGH);
-            // No DMA interrupts: embassy owns this vector; the tick polls NDTR.
-            w.set_en(true);
-        });
+        super::drive_dma::start_circular(
+            request,
+            pac::DAC1.dhr12rd().as_ptr() as u32,
+            buffer_ptr() as u32,
+            SAMPLES as u16,
+        );
 
         let tim6 = Timer::new(tim6);
         let r = tim6.regs_basic();
@@ -115,7 +100,7 @@ impl Drive {
 
     /// Half the DMA is reading now.
     pub fn dma_half(&self) -> usize {
-        ring::dma_half(pac::DMA1.ch(DMA_CH).ndtr().read().ndt(), SAMPLES as u16)
+        ring::dma_half(super::drive_dma::remaining(), SAMPLES as u16)
     }
 
     pub fn write_half(&mut self, half: usize, samples: &[[u16; 2]; DAC_SAMPLES_PER_STEP]) {
@@ -142,7 +127,7 @@ pub fn force_safe() {
         w.set_dmaen(0, false);
         w.set_dmaen(1, false);
     });
-    pac::DMA1.ch(DMA_CH).cr().modify(|w| w.set_en(false));
+    super::drive_dma::stop();
     pac::DAC1.dhr12rd().write_value(pac::dac::regs::Dhr12rd(ring::pack_dac([SAFE_DAC_WORD; 2])));
     pac::TIM6.cr1().modify(|w| w.set_cen(true));
 }

@@ -14,7 +14,6 @@ use core::cell::UnsafeCell;
 
 use embassy_stm32::gpio::OutputType;
 use embassy_stm32::pac;
-use embassy_stm32::pac::bdma::vals::{Dir, Pl, Size};
 use embassy_stm32::peripherals::{DMA1_CH1, PA8, PA9, TIM1};
 use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::low_level::CountingMode;
@@ -25,7 +24,6 @@ use piezo_drive::controller::DAC_SAMPLES_PER_STEP;
 use super::ring::{self, HALF, SAMPLES};
 use super::{SAFE_DAC_WORD, SAMPLE_HZ};
 
-const DMA_CH: usize = 0;
 /// Two compare values per sample.
 const TRANSFERS: usize = 2 * SAMPLES;
 /// CCR1's word offset in the timer's register block (0x34 / 4): the DMA burst's base.
@@ -81,24 +79,14 @@ impl Drive {
         pwm.ch1().enable();
         pwm.ch2().enable();
 
-        let ch = pac::DMA1.ch(DMA_CH);
-        ch.cr().write(|w| w.set_en(false));
         // DMAMUX request of TIM1_UP (46 on the G474), from embassy's chip metadata.
         let request = <DMA1_CH1 as embassy_stm32::timer::UpDma<TIM1>>::request(&dma);
-        pac::DMAMUX1.ccr(DMA_CH).write(|w| w.set_dmareq_id(request));
-        ch.par().write_value(pac::TIM1.dmar().as_ptr() as u32);
-        ch.mar().write_value(buffer_ptr() as u32);
-        ch.ndtr().write(|w| w.set_ndt(TRANSFERS as u16));
-        pac::DMA1.ifcr().write(|w| w.set_gif(DMA_CH, true));
-        ch.cr().write(|w| {
-            w.set_dir(Dir::FROM_MEMORY);
-            w.set_circ(true);
-            w.set_minc(true);
-            w.set_psize(Size::BITS32);
-            w.set_msize(Size::BITS32);
-            w.set_pl(Pl::VERY_HIGH);
-            w.set_en(true);
-        });
+        super::drive_dma::start_circular(
+            request,
+            pac::TIM1.dmar().as_ptr() as u32,
+            buffer_ptr() as u32,
+            TRANSFERS as u16,
+        );
         pac::TIM1.dcr().write(|w| {
             w.set_dba(DBA_CCR1);
             w.set_dbl(1);
@@ -117,7 +105,7 @@ impl Drive {
     }
 
     pub fn dma_half(&self) -> usize {
-        ring::dma_half(pac::DMA1.ch(DMA_CH).ndtr().read().ndt(), TRANSFERS as u16)
+        ring::dma_half(super::drive_dma::remaining(), TRANSFERS as u16)
     }
 
     pub fn write_half(&mut self, half: usize, samples: &[[u16; 2]; DAC_SAMPLES_PER_STEP]) {
@@ -145,7 +133,7 @@ pub fn force_safe() {
         return;
     }
     pac::TIM1.dier().modify(|w| w.set_ude(false));
-    pac::DMA1.ch(DMA_CH).cr().modify(|w| w.set_en(false));
+    super::drive_dma::stop();
     let safe = ring::pwm_compare(SAFE_DAC_WORD, period());
     pac::TIM1.ccr(0).write(|w| w.set_ccr(safe as u16));
     pac::TIM1.ccr(1).write(|w| w.set_ccr(safe as u16));

@@ -37,6 +37,8 @@ pub mod drive_pwm;
 #[cfg(all(target_os = "none", feature = "pwm-drive", not(feature = "dac-drive")))]
 pub use drive_pwm as drive;
 #[cfg(target_os = "none")]
+pub mod drive_dma;
+#[cfg(target_os = "none")]
 pub mod encoder;
 #[cfg(target_os = "none")]
 pub mod params_flash;
