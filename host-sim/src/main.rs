@@ -269,11 +269,16 @@ fn run(cli: Cli) -> Result<()> {
             );
             for r in &rows {
                 println!(
-                    "{:<38} {:>12.3} {:>12} {:>14.1} {:>14.1} {:>12.3}  {}",
+                    "{:<38} {:>12.3} {:>12} {:>14} {:>14.1} {:>12.3}  {}",
                     r.step,
                     r.target_um,
                     r.settle_time_s.map_or("-".into(), |t| format!("{t:.4}")),
-                    r.final_error_nm,
+                    // A refused command has no final error.
+                    if r.final_error_nm.is_finite() {
+                        format!("{:.1}", r.final_error_nm)
+                    } else {
+                        "-".into()
+                    },
                     r.overshoot_nm,
                     r.max_following_error_um,
                     r.result
