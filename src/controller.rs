@@ -476,7 +476,8 @@ impl Controller {
                 let load = (dir * self.thrust_bias_n).max(0.0);
                 let never = m.speed_limit_load_n.is_nan();
                 if never || (load - m.speed_limit_load_n).abs() > LOAD_RESOLVE_N {
-                    m.speed_limit_mm_s = p.speed_at_load_mm_s(Fx::saturating_from_num(load)).to_num();
+                    let hint = if never { f32::NAN } else { m.speed_limit_mm_s };
+                    m.speed_limit_mm_s = p.speed_at_load_near(Fx::saturating_from_num(load), hint).to_num();
                     m.speed_limit_load_n = load;
                 }
             }

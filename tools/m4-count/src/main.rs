@@ -130,7 +130,7 @@ fn main() -> ! {
             core::hint::black_box(ctl.step(core::hint::black_box(&inputs)));
         });
         if was_moving {
-            if c as f32 * k > 12_000.0 && slow < 12 {
+            if c as f32 * k > 14_000.0 && slow < 12 {
                 slow += 1;
                 hprintln!("slowest moving ticks: #{} {} instructions, drive {} V", i, (c as f32 * k) as u32, ctl.drive_voltage_v());
             }
