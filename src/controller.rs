@@ -808,7 +808,9 @@ impl Controller {
         let foot_speed = self.cached_limits().map_or(0.0, |(_, v0)| v0 * 1e6);
         if driving && dir * self.speed_nm_s < 0.1 * foot_speed {
             // Sliding backwards under full drive is the clearest sign: count it five times faster.
-            let backwards = dir * self.speed_nm_s < -0.1 * foot_speed;
+            // (only at full drive: below it the controller may still be finding the load).
+            let backwards =
+                dir * self.speed_nm_s < -0.1 * foot_speed && self.drive_v >= 0.95 * self.cfg.max_drive_v;
             self.stall_s += if backwards { 5.0 * self.dt_s } else { self.dt_s };
             if self.stall_s >= self.cfg.stall_time_s {
                 self.trip(FaultCode::Stall);
@@ -955,8 +957,11 @@ impl Controller {
             let sample = d * applied - mass * accel;
             // Observe only while the drive pushes the way the slider moves at a fair speed: the
             // model is least certain when braking and near standstill (stick).
-            if d * self.speed_nm_s > 200_000.0 && self.drive_v > 0.2 * self.cfg.max_drive_v {
-                self.observed_bias_n += 0.005 * (sample - self.observed_bias_n);
+            let backslide = self.state == State::Moving && d * self.speed_nm_s < -50_000.0;
+            if (d * self.speed_nm_s > 200_000.0 || backslide) && self.drive_v > 0.2 * self.cfg.max_drive_v {
+                // Sliding back under drive means the load is far above the estimate: learn faster.
+                let gain = if backslide { 0.02 } else { 0.005 };
+                self.observed_bias_n += gain * (sample - self.observed_bias_n);
             }
             // The integral on the position error corrects what the model gets wrong.
             self.integral_n =
