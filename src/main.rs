@@ -119,9 +119,11 @@ mod board {
 
         // Give the preload filter a few samples before the loop starts.
         Timer::after_millis(5).await;
-        control::start(p.TIM7, drive, enc, amp_enable);
+        // The watchdog is configured before the tick runs: the tick's reloads (KR writes) would
+        // otherwise re-lock PR/RLR between embassy's unlock and its writes (RM0440 IWDG).
         let mut wdg = IndependentWatchdog::new(p.IWDG, safety::WATCHDOG_TIMEOUT_US);
         wdg.unleash();
+        control::start(p.TIM7, drive, enc, amp_enable);
         defmt::info!("control loop running at {} Hz", defaults::LOOP_HZ);
 
         loop {

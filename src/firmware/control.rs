@@ -217,7 +217,12 @@ fn TIM7_DAC() {
         t.late_in_a_row = t.late_in_a_row.saturating_add(1);
         if t.late_in_a_row == OVERRUN_SERVO_OFF {
             if let Some(c) = controller.as_mut() {
-                if c.servo() {
+                // Any motion, closed loop or not (open-loop stepping and referencing run with
+                // the servo off): servo off ramps the drive to quiet and leaves the state idle.
+                if !matches!(
+                    c.state(),
+                    piezo_drive::controller::State::Idle | piezo_drive::controller::State::Fault(_)
+                ) {
                     let _ = c.set_servo(false);
                     OVERRUN_SERVO_OFFS.fetch_add(1, Ordering::Relaxed);
                 }

@@ -2,8 +2,10 @@
 //! range-checked) in the last 2 KiB page of the flash, 0x0807_F800 (page 127 of bank 2 in the
 //! STM32G474RE's factory dual-bank mode, DBANK = 1). `memory.x` keeps the firmware out of it.
 //! Loaded at boot (defaults when missing or invalid); written by a task on request (`WPA`), so
-//! the UART never waits for the ~20 ms page erase. Erasing bank 2 while the code runs from
-//! bank 1 does not stall instruction fetch, so the control tick keeps running during a store.
+//! the UART never waits for the ~20 ms page erase. embassy 0.4 erases and programs inside a
+//! critical section, so no interrupt — not the control tick — runs for those ~20 ms: a store is
+//! therefore only carried out while the controller is idle (servo off, no motion; the protocol
+//! refuses `WPA` otherwise and this task checks again), when the DMA replays quiet samples.
 //!
 //! If the option bytes say single-bank (DBANK = 0, 4 KiB pages) the layout embassy was built for
 //! (`dual-bank`) does not match: embassy's `Flash` would panic, so the firmware skips the flash,
@@ -75,6 +77,14 @@ pub fn request_store(cfg: &ControllerConfig) -> bool {
 pub async fn flash_task(mut flash: Flash<'static, Blocking>, defaults: ControllerConfig) {
     loop {
         let record = REQUEST.wait().await;
+        let idle = super::control::CONTROLLER
+            .lock(|c| c.as_ref().is_some_and(|c| c.state() == piezo_drive::controller::State::Idle))
+            .unwrap_or(false);
+        if !idle {
+            defmt::error!("parameter store refused: the controller is not idle (servo off first)");
+            STORE_STATE.store(3, Ordering::Relaxed);
+            continue;
+        }
         let mut padded = [0xFFu8; PADDED_LEN];
         for (d, s) in padded.iter_mut().zip(record.iter()) {
             *d = *s;

@@ -4,6 +4,8 @@
 //! - on a controller fault: `Outputs::amp_enable == false` (see `control.rs`);
 //! - on panic: our `#[panic_handler]` writes GPIOA and the drive registers through the PAC before
 //!   anything else, then logs over defmt and waits for the watchdog to reset the chip;
+//! - on HardFault, NMI or an unexpected interrupt: the same register writes, then a wait for the
+//!   watchdog (cortex-m-rt's default handlers would spin with the drive running);
 //! - when the independent watchdog fires: the reset puts every pin in its reset state (the enable
 //!   pin floats → pull-down → amplifier off; DAC off), and the next boot reports the IWDG reset.
 //!
@@ -67,6 +69,28 @@ pub fn freeze_on_debug_halt() {
         w.set_tim7(true);
     });
     pac::DBGMCU.apb2fzr().modify(|w| w.set_tim1(true));
+}
+
+#[cortex_m_rt::exception]
+unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
+    loop {
+        force_safe();
+    }
+}
+
+#[cortex_m_rt::exception]
+unsafe fn NonMaskableInt() {
+    // E.g. a double ECC error reading flash: nothing here can be trusted to continue.
+    loop {
+        force_safe();
+    }
+}
+
+#[cortex_m_rt::exception]
+unsafe fn DefaultHandler(_irqn: i16) {
+    loop {
+        force_safe();
+    }
 }
 
 #[panic_handler]
