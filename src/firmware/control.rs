@@ -93,8 +93,13 @@ impl<T> TickLock<T> {
 
 /// The controller, shared by the tick (every 100 µs) and the UART task (per command).
 pub static CONTROLLER: TickLock<Option<Controller>> = TickLock::new(None);
-/// Latest preload-cell word from the ADC task (u16 in a u32).
+/// Latest preload-cell word from the ADC task: the word in the low 16 bits, a sample counter in
+/// the high 16 (so the tick sees when the task stops delivering).
 pub static PRELOAD_WORD: AtomicU32 = AtomicU32::new(0);
+/// Ticks without a new preload sample after which the tick hands the core an invalid word
+/// (20 ms, twenty missed 1 kHz samples): a stuck ADC task becomes the core's preload-sensor fault
+/// instead of a frozen force reading, while the watchdog only watches the tick.
+const PRELOAD_STALE_TICKS: u32 = 200;
 /// Set by the index task, taken by the next tick.
 pub static INDEX_SEEN: AtomicBool = AtomicBool::new(false);
 
@@ -113,6 +118,27 @@ pub const OVERRUN_SERVO_OFF: u32 = 10;
 /// The tick comes this many samples after the DMA enters a half.
 pub const TICK_OFFSET_SAMPLES: u32 = 2;
 
+impl TickCtx {
+    /// The latest preload word, or `u16::MAX` once the ADC task has delivered nothing new for
+    /// [`PRELOAD_STALE_TICKS`]: outside the 12-bit ADC's range, so outside any calibration window
+    /// that matches the ADC (the default is 0–4095).
+    fn fresh_preload_word(&mut self) -> u16 {
+        let packed = PRELOAD_WORD.load(Ordering::Relaxed);
+        let seq = (packed >> 16) as u16;
+        if seq != self.preload_seq {
+            self.preload_seq = seq;
+            self.preload_age_ticks = 0;
+        } else {
+            self.preload_age_ticks = self.preload_age_ticks.saturating_add(1);
+        }
+        if self.preload_age_ticks > PRELOAD_STALE_TICKS {
+            u16::MAX
+        } else {
+            packed as u16
+        }
+    }
+}
+
 /// What only the tick touches.
 pub struct TickCtx {
     pub drive: Drive,
@@ -120,6 +146,8 @@ pub struct TickCtx {
     pub amp_enable: Output<'static>,
     refill: Refill,
     late_in_a_row: u32,
+    preload_seq: u16,
+    preload_age_ticks: u32,
 }
 
 /// Set up by `start` (TIM7 interrupt still off), then used by the tick alone.
@@ -159,8 +187,15 @@ pub fn start(tim7: Peri<'static, TIM7>, drive: Drive, encoder: Encoder, amp_enab
     core::mem::forget(timer);
 
     let _ = TICK.lock(|tick| {
-        let ctx =
-            tick.insert(TickCtx { drive, encoder, amp_enable, refill: Refill::default(), late_in_a_row: 0 });
+        let ctx = tick.insert(TickCtx {
+            drive,
+            encoder,
+            amp_enable,
+            refill: Refill::default(),
+            late_in_a_row: 0,
+            preload_seq: 0,
+            preload_age_ticks: 0,
+        });
         let preset = ring::tick_preset(TICK_COUNTS, TICK_OFFSET_SAMPLES * SAMPLE_COUNTS);
         // Both counters start within a few cycles of each other (in one critical section); from
         // then on they share a clock.
@@ -189,7 +224,7 @@ fn TIM7_DAC() {
     #[allow(clippy::needless_update)]
     let inputs = Inputs {
         encoder_raw: t.encoder.raw(),
-        preload_word: PRELOAD_WORD.load(Ordering::Relaxed) as u16,
+        preload_word: t.fresh_preload_word(),
         index: INDEX_SEEN.swap(false, Ordering::Relaxed),
         ..Default::default()
     };

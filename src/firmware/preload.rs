@@ -37,10 +37,13 @@ impl Preload {
 #[embassy_executor::task]
 pub async fn preload_task(mut p: Preload) {
     let mut ticker = Ticker::every(PERIOD);
+    let mut seq: u16 = 0;
     loop {
         // One oversampled conversion: 16 × (47.5 + 12.5) ADC cycles, about 23 µs at 42.5 MHz.
         let word = p.adc.blocking_read(&mut p.pin);
-        PRELOAD_WORD.store(u32::from(word), Ordering::Relaxed);
+        // The counter in the high half tells the tick this is a new sample.
+        seq = seq.wrapping_add(1);
+        PRELOAD_WORD.store((u32::from(seq) << 16) | u32::from(word), Ordering::Relaxed);
         ticker.next().await;
     }
 }
