@@ -706,6 +706,10 @@ fn spa_query_reads_back_what_was_set() {
         (b"SPA 1 0x1 12.5\n", b""),
         (b"SPA? 1 0x1 1 0x3F\n", b"1 0x1=12.5 \n1 0x3F=0.01\n"),
         (b"ERR?\n", b"0\n"),
+        // Referencing on the negative limit switch: accepted (the simulator has switches).
+        (b"SPA 1 0x1016 1\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"SPA? 1 0x1016\n", b"1 0x1016=1\n"),
     ]);
     // Whatever f32 a gain holds, SPA? prints digits that SPA turns into the same f32.
     for x in [119.776924f32, 12.4448185, 0.1, 1.0e-7, 3.4e7, 1.0000001, 7.0e-4, 65504.0] {
