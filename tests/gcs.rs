@@ -228,7 +228,7 @@ TMN? [{<AxisID>}] Get Minimum Commandable Position \n\
 TMX? [{<AxisID>}] Get Maximum Commandable Position \n\
 VEL {<AxisID> <Velocity>} Set Closed-Loop Velocity \n\
 VEL? [{<AxisID>}] Get Closed-Loop Velocity \n\
-WPA [<Password>] Save Parameters To Non-Volatile Memory \n\
+WPA [<Password>] Save Parameters To Non-Volatile Memory (Servo Off And Idle Only) \n\
 XDA? [{<AxisID>}] Get Drive Amplitude In V Peak-To-Peak (extension) \n\
 XDF? [{<AxisID>}] Get Drive Frequency In Hz (extension) \n\
 XFT? [{<AxisID>}] Get Fault Code And Text (extension) \n\
@@ -452,7 +452,7 @@ fn parameters_spa_hpa_wpa() {
         // Decimal ids work too; several in one line.
         (b"SPA 1 1 60 1 0x3F 0.02\n", b""),
         (b"SPA? 1 0x1 1 0x3F\n", b"1 0x1=60 \n1 0x3F=0.02\n"),
-        (b"SPA? 1 0x15 1 0x30\n", b"1 0x15=50 \n1 0x30=-50\n"),
+        (b"SPA? 1 0x15 1 0x30\n", b"1 0x15=50.000000 \n1 0x30=-50.000000\n"),
         (b"SPA? 1 0x1005 1 0x1021\n", b"1 0x1005=1 \n1 0x1021=10000\n"),
         // Read-only, unknown, out of range (negative travel above positive), not an integer.
         (b"SPA 1 0x1021 5000\n", b""),
@@ -479,6 +479,8 @@ fn parameters_spa_hpa_wpa() {
         (b"SPA 1 0x15 12.5 1 0x30 -2\n", b""),
         (b"TMX?\n", b"1=12.500000\n"),
         (b"TMN?\n", b"1=-2.000000\n"),
+        // The servo is off and nothing moves: WPA may write the flash.
+        (b"SVO?\n", b"1=0\n"),
         (b"WPA\n", b""),
         (b"ERR?\n", b"0\n"),
     ]);
@@ -616,4 +618,166 @@ fn pending_lines_are_what_was_sent() {
     assert!(b"MOV 1".iter().all(|&b| gcs.push_byte(b).is_none()));
     gcs.discard_partial_line();
     assert!(matches!(gcs.push_byte(b'\n'), Some(Pending::Line(l)) if l.is_empty()));
+}
+
+#[test]
+fn every_pair_of_a_line_is_checked_before_the_last_counts() {
+    let mut rig = Rig::new();
+    rig.ready();
+    rig.transcript(&[
+        // First target beyond TMX: no motion towards the second either.
+        (b"MOV 1 999 1 0.5\n", b""),
+        (b"ERR?\n", b"7\n"),
+        (b"MOV?\n", b"1=0.000000\n"),
+        (b"\x05", b"0\n"),
+        (b"MVR 1 999 1 0.1\n", b""),
+        (b"ERR?\n", b"7\n"),
+        (b"MOV?\n", b"1=0.000000\n"),
+        // First velocity negative: the second is not set.
+        (b"VEL 1 -3 1 2\n", b""),
+        (b"ERR?\n", b"8\n"),
+        (b"VEL?\n", b"1=10\n"),
+        (b"ACC 1 0 1 5\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"ACC?\n", b"1=1000\n"),
+        (b"RON 1 2 1 0\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"RON?\n", b"1=1\n"),
+        // All pairs valid: the last one counts.
+        (b"VEL 1 3 1 2\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"VEL?\n", b"1=2\n"),
+        (b"MOV 1 0.3 1 0.5\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"MOV?\n", b"1=0.500000\n"),
+        (b"STP\n", b""),
+        (b"ERR?\n", b"10\n"),
+        // First servo state out of range: the servo stays off.
+        (b"SVO 1 0\n", b""),
+        (b"SVO 1 5 1 1\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"SVO?\n", b"1=0\n"),
+    ]);
+}
+
+#[test]
+fn pos_stays_within_the_travel_limits() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"RON 1 0\n", b""),
+        (b"POS 1 50.000001\n", b""),
+        (b"ERR?\n", b"7\n"),
+        (b"POS 1 -51\n", b""),
+        (b"ERR?\n", b"7\n"),
+        (b"POS 1 9223372036854\n", b""),
+        (b"ERR?\n", b"7\n"),
+        (b"POS 1 99999999999999999999999\n", b""),
+        (b"ERR?\n", b"7\n"),
+        // One pair beyond: the other is not set either.
+        (b"POS 1 1 1 60\n", b""),
+        (b"ERR?\n", b"7\n"),
+        (b"POS?\n", b"1=0.000000\n"),
+        (b"FRF?\n", b"1=0\n"),
+        // The limits themselves are positions.
+        (b"POS 1 -50\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"POS?\n", b"1=-50.000000\n"),
+        (b"POS 1 50\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"POS?\n", b"1=50.000000\n"),
+    ]);
+}
+
+#[test]
+fn spa_query_reads_back_what_was_set() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        // Lengths in mm with six decimals, as TMX? prints them.
+        (b"SPA 1 0x15 12.345678\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"SPA? 1 0x15\n", b"1 0x15=12.345678\n"),
+        (b"TMX?\n", b"1=12.345678\n"),
+        (b"SPA 1 0x1017 -0.000001\n", b""),
+        (b"SPA? 1 0x1017\n", b"1 0x1017=-0.000001\n"),
+        // An f32 that takes nine significant digits to tell from its neighbours.
+        (b"SPA 1 0x1 119.776924\n", b""),
+        (b"SPA? 1 0x1\n", b"1 0x1=119.776924\n"),
+        // Fewer digits where they suffice.
+        (b"SPA 1 0x1 12.5\n", b""),
+        (b"SPA? 1 0x1 1 0x3F\n", b"1 0x1=12.5 \n1 0x3F=0.01\n"),
+        (b"ERR?\n", b"0\n"),
+        // Referencing on the negative limit switch: accepted (the simulator has switches).
+        (b"SPA 1 0x1016 1\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"SPA? 1 0x1016\n", b"1 0x1016=1\n"),
+    ]);
+    // Whatever f32 a gain holds, SPA? prints digits that SPA turns into the same f32.
+    for x in [119.776924f32, 12.4448185, 0.1, 1.0e-7, 3.4e7, 1.0000001, 7.0e-4, 65504.0] {
+        rig.ctl
+            .set_config(piezo_drive::controller::ControllerConfig { kp_per_s: x, ..*rig.ctl.config() })
+            .unwrap();
+        let text = String::from_utf8(rig.send(b"SPA? 1 0x1\n")).unwrap();
+        let value = text.trim_end().strip_prefix("1 0x1=").unwrap();
+        assert!(value.len() <= 16, "{text:?}");
+        let sent = format!("SPA 1 0x1 {value}\n");
+        rig.transcript(&[(sent.as_bytes(), b""), (b"ERR?\n", b"0\n")]);
+        assert_eq!(rig.ctl.config().kp_per_s, x, "{text:?}");
+    }
+}
+
+#[test]
+fn nul_bytes_between_lines_are_ignored() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"\x00", b""),
+        (b"\x00\x00CSV?\n\x00", b"2.0\n"),
+        (b"ERR?\n", b"0\n"),
+        // Other control bytes are still unknown commands.
+        (b"\x02", b""),
+        (b"ERR?\n", b"2\n"),
+    ]);
+}
+
+#[test]
+fn wpa_only_with_the_servo_off_and_nothing_moving() {
+    let mut rig = Rig::new();
+    rig.ready();
+    // Servo on (holding): refused with 34, nothing stored.
+    rig.transcript(&[
+        (b"WPA\n", b""),
+        (b"ERR?\n", b"34\n"),
+        (b"MOV 1 1\n", b""),
+        (b"\x05", b"1\n"),
+        (b"WPA 100\n", b""),
+        (b"ERR?\n", b"34\n"),
+    ]);
+    assert!(rig.board.stored.is_none());
+    // Servo off but stepping open loop: still refused.
+    rig.transcript(&[
+        (b"STP\n", b""),
+        (b"SVO 1 0\n", b""),
+        (b"XOS 1 100 50 1000\n", b""),
+        (b"\x05", b"1\n"),
+        (b"WPA\n", b""),
+        (b"ERR?\n", b"34\n"),
+    ]);
+    assert!(rig.board.stored.is_none());
+    // Referencing: refused.
+    rig.transcript(&[
+        (b"STP\n", b""),
+        (b"FRF 1\n", b""),
+        (b"\x07", &[0xB0, b'\n']),
+        (b"WPA\n", b""),
+        (b"ERR?\n", b"34\n"),
+    ]);
+    assert!(rig.board.stored.is_none());
+    // Quiet: stored.
+    rig.transcript(&[
+        (b"STP\n", b""),
+        (b"ERR?\n", b"10\n"),
+        (b"\x05", b"0\n"),
+        (b"WPA\n", b""),
+        (b"ERR?\n", b"0\n"),
+    ]);
+    assert!(rig.board.stored.is_some());
 }

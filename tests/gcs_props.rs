@@ -4,7 +4,9 @@
 
 use piezo_drive::controller::{Controller, Inputs};
 use piezo_drive::defaults;
-use piezo_drive::gcs::num::{parse_decimal, parse_int, write_fixed, write_general, write_scaled, Decimal};
+use piezo_drive::gcs::num::{
+    parse_decimal, parse_int, write_f32, write_fixed, write_general, write_scaled, Decimal,
+};
 use piezo_drive::gcs::{Board, Gcs, LoopStats, Pending, Reply, LINE_CAPACITY};
 use proptest::prelude::*;
 
@@ -134,6 +136,53 @@ proptest! {
         let back: f64 = s.parse().unwrap();
         prop_assert!((back - v).abs() <= v.abs() * 1e-6 + 1e-12, "{v} -> {s}");
         prop_assert!(!s.ends_with('.') && (!s.contains('.') || !s.ends_with('0')), "{s}");
+    }
+
+    #[test]
+    fn f32_parameters_read_back_exactly(bits in any::<u32>(), exponent in 98u32..176, zero in 0u8..20) {
+        // SPA? prints an f32 so that SPA (parse_decimal, to_f64, then f32) sets the same f32:
+        // any sign and mantissa with a magnitude from 2^-29 (1.9e-9) to 2^49 (5.6e14), and 0,
+        // with at most nine significant digits after the point.
+        let x = if zero == 0 { 0.0 } else { f32::from_bits((bits & 0x807F_FFFF) | (exponent << 23)) };
+        let mut b: heapless::Vec<u8, 64> = heapless::Vec::new();
+        prop_assert!(write_f32(&mut b, x));
+        let s = String::from_utf8(b.to_vec()).unwrap();
+        let back = dec(&s).to_f64().unwrap() as f32;
+        prop_assert_eq!(back, x, "{}", s);
+        let significant = s.trim_start_matches('-').replace('.', "");
+        let significant = significant.trim_start_matches('0');
+        // Whole numbers beyond nine digits print all their digits (no exponent notation).
+        prop_assert!(significant.trim_end_matches('0').len() <= 9 || !s.contains('.'), "{}", s);
+        prop_assert!(!s.ends_with('.') && (!s.contains('.') || !s.ends_with('0')), "{}", s);
+    }
+
+    #[test]
+    fn a_bad_first_pair_moves_nothing(first in -200.0f64..200.0, second in -40.0f64..40.0) {
+        // MOV with two pairs: the second counts only if the first is within TMN?..TMX? too.
+        let mut gcs = Gcs::new();
+        let mut ctl = Controller::new(defaults::controller_config()).unwrap();
+        let mut board = NullBoard;
+        let inputs = Inputs { preload_word: 1310, ..Default::default() };
+        ctl.step(&inputs);
+        let mut send = |gcs: &mut Gcs, ctl: &mut Controller, text: &str| {
+            let mut all = Vec::new();
+            for &b in text.as_bytes() {
+                if let Some(p) = gcs.push_byte(b) {
+                    let mut reply = Reply::new();
+                    gcs.execute(&p, ctl, &mut board, &mut reply);
+                    all.extend_from_slice(&reply);
+                }
+            }
+            String::from_utf8(all).unwrap()
+        };
+        prop_assert_eq!(send(&mut gcs, &mut ctl, "RON 1 0\nSVO 1 1\nERR?\n"), "0\n");
+        let line = format!("MOV 1 {first:.6} 1 {second:.6}\nERR?\nMOV?\n");
+        let got = send(&mut gcs, &mut ctl, &line);
+        if first.abs() <= 50.0 {
+            prop_assert_eq!(got, format!("0\n1={second:.6}\n"));
+        } else {
+            prop_assert_eq!(got, "7\n1=0.000000\n");
+        }
     }
 
     #[test]

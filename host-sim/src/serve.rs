@@ -217,30 +217,56 @@ impl VirtualController {
         }
     }
 
-    /// Feeds received bytes through the protocol; replies are appended to `out`.
+    /// Feeds received bytes through the protocol; replies are appended to `out` (which must
+    /// have room for them all: tests only).
     pub fn feed(&mut self, bytes: &[u8], out: &mut Reply) {
         for &b in bytes {
             if let Some(p) = self.gcs.push_byte(b) {
-                let before = out.len();
-                self.gcs.execute(&p, &mut self.sil.controller, &mut self.board, out);
-                if self.verbose {
-                    let cmd = match &p {
-                        Pending::Line(l) => escape(l),
-                        Pending::TooLong => "<line too long>".into(),
-                        Pending::Byte(b) => escape(&[*b]),
-                    };
-                    let reply = out.get(before..).map(escape).unwrap_or_default();
-                    eprintln!(
-                        "[{:9.4} s] > {cmd}  < {}{}",
-                        self.sil.time_s() - self.sim_start_s,
-                        if reply.is_empty() { "(nothing)" } else { &reply },
-                        match self.gcs.latched_error() {
-                            0 => String::new(),
-                            e => format!("  [error {e} latched]"),
-                        }
-                    );
+                self.execute(&p, out);
+            }
+        }
+    }
+
+    /// Feeds received bytes through the protocol, each command with a reply buffer of its own
+    /// (a full `REPLY_CAPACITY`, as on the board), handing every non-empty reply to `write` as
+    /// soon as its command ran. Stops at the first failed write.
+    fn feed_each(
+        &mut self,
+        bytes: &[u8],
+        mut write: impl FnMut(&[u8]) -> std::io::Result<()>,
+    ) -> std::io::Result<()> {
+        for &b in bytes {
+            if let Some(p) = self.gcs.push_byte(b) {
+                let mut out = Reply::new();
+                self.execute(&p, &mut out);
+                if !out.is_empty() {
+                    write(&out)?;
                 }
             }
+        }
+        Ok(())
+    }
+
+    /// Runs one command; its reply is appended to `out`.
+    fn execute(&mut self, p: &Pending, out: &mut Reply) {
+        let before = out.len();
+        self.gcs.execute(p, &mut self.sil.controller, &mut self.board, out);
+        if self.verbose {
+            let cmd = match p {
+                Pending::Line(l) => escape(l),
+                Pending::TooLong => "<line too long>".into(),
+                Pending::Byte(b) => escape(&[*b]),
+            };
+            let reply = out.get(before..).map(escape).unwrap_or_default();
+            eprintln!(
+                "[{:9.4} s] > {cmd}  < {}{}",
+                self.sil.time_s() - self.sim_start_s,
+                if reply.is_empty() { "(nothing)" } else { &reply },
+                match self.gcs.latched_error() {
+                    0 => String::new(),
+                    e => format!("  [error {e} latched]"),
+                }
+            );
         }
     }
 
@@ -266,28 +292,13 @@ impl VirtualController {
                 std::thread::sleep(Duration::from_micros(500));
                 continue;
             }
-            let mut rest = buf.get(..n).unwrap_or_default();
-            while !rest.is_empty() {
-                let mut out = Reply::new();
-                // Feed byte by byte so a large input never overflows the reply buffer.
-                let mut used = 0;
-                for (i, b) in rest.iter().enumerate() {
-                    self.feed(std::slice::from_ref(b), &mut out);
-                    used = i + 1;
-                    if out.len() > out.capacity() / 2 {
-                        break;
-                    }
+            let chunk = buf.get(..n).unwrap_or_default();
+            if let Err(e) = self.feed_each(chunk, |reply| link.write_all_bytes(reply)) {
+                if self.verbose {
+                    eprintln!("client gone while replying: {e}");
                 }
-                rest = rest.get(used..).unwrap_or_default();
-                if !out.is_empty() {
-                    if let Err(e) = link.write_all_bytes(&out) {
-                        if self.verbose {
-                            eprintln!("client gone while replying: {e}");
-                        }
-                        self.gcs.discard_partial_line();
-                        return Ok(());
-                    }
-                }
+                self.gcs.discard_partial_line();
+                return Ok(());
             }
         }
     }
@@ -426,6 +437,7 @@ pub fn run(p: &Params, args: &ServeArgs) -> Result<()> {
 mod tests {
     use super::*;
     use piezo_drive::controller::State;
+    use piezo_drive::gcs::REPLY_CAPACITY;
 
     fn args() -> ServeArgs {
         ServeArgs {
@@ -587,13 +599,74 @@ mod tests {
         let _ = std::fs::remove_file(&path);
         let a = ServeArgs { store: Some(path.clone()), ..args() };
         let mut vc = VirtualController::new(&p, &a).unwrap();
-        assert_eq!(send(&mut vc, "VEL 1 1.5\nSPA 1 0x15 20\nWPA 100\nERR?\n"), "0\n");
+        // Only with the servo off and nothing moving (error 34 otherwise), as on the board where
+        // writing the flash stalls the CPU.
+        assert_eq!(send(&mut vc, "SVO 1 1\nWPA 100\nERR?\n"), "34\n");
+        assert!(vc.board.stored.is_none() && !path.exists());
+        assert_eq!(send(&mut vc, "SVO 1 0\nVEL 1 1.5\nSPA 1 0x15 20\nWPA 100\nERR?\n"), "0\n");
         let text = std::fs::read_to_string(&path).unwrap();
-        assert!(text.contains("SPA 1 0xA 1.5\n") && text.contains("SPA 1 0x15 20\n"), "{text}");
+        assert!(text.contains("SPA 1 0xA 1.5\n") && text.contains("SPA 1 0x15 20.000000\n"), "{text}");
         // A new virtual controller starts with them, as the board does from flash.
         let mut again = VirtualController::new(&p, &a).unwrap();
         assert_eq!(send(&mut again, "VEL?\nTMX?\nERR?\n"), "1=1.5\n1=20.000000\n0\n");
         let _ = std::fs::remove_file(&path);
+    }
+
+    /// A link that delivers one chunk, collects what is written, then reports the client gone.
+    struct OneChunk {
+        chunk: Option<Vec<u8>>,
+        written: Vec<u8>,
+    }
+
+    impl Link for OneChunk {
+        fn poll_read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            match self.chunk.take() {
+                Some(c) => {
+                    buf[..c.len()].copy_from_slice(&c);
+                    Ok(c.len())
+                }
+                None => Err(std::io::Error::new(ErrorKind::UnexpectedEof, "done")),
+            }
+        }
+        fn write_all_bytes(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+            self.written.extend_from_slice(bytes);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn large_replies_to_commands_sent_together_are_complete() {
+        let p = Params::prototype();
+        let pos31 = format!("POS?{}\n", " 1".repeat(31));
+        // HLP? (about 2 kB) after replies of every size from about 0.5 to 2.4 kB, all in one
+        // read, as a client that does not wait for each reply sends them.
+        for n in 0..=4 {
+            for k in 0..=34 {
+                let mut cmds = vec!["HPA?\n".to_string(), "SPA?\n".to_string()];
+                cmds.extend(std::iter::repeat_n(pos31.clone(), n));
+                cmds.extend(std::iter::repeat_n("POS?\n".to_string(), k));
+                cmds.extend(["HLP?\n", "*IDN?\n", "ERR?\n"].map(String::from));
+                let chunk = cmds.concat().into_bytes();
+                assert!(chunk.len() <= 512, "one read: {}", chunk.len());
+                // Each reply on its own, from a controller in the same state.
+                let mut single = VirtualController::new(&p, &args()).unwrap();
+                let expected: String = cmds.iter().map(|c| send(&mut single, c)).collect();
+                assert!(expected.len() > REPLY_CAPACITY, "{}", expected.len());
+                let mut vc = VirtualController::new(&p, &args()).unwrap();
+                let mut link = OneChunk { chunk: Some(chunk), written: Vec::new() };
+                vc.serve_client(&mut link, None).unwrap();
+                let got = String::from_utf8(link.written).unwrap();
+                assert_eq!(got, expected, "{n} × POS? 1…1, {k} × POS?");
+                // Complete by the GCS framing: both help lists end, SPA? lists every
+                // parameter, and no error (3: reply too long) was latched.
+                assert!(got.starts_with("#Possible parameters of this device: \n"), "{got}");
+                assert_eq!(got.matches("end of help\n").count(), 2, "{got}");
+                assert!(got.contains("\nHLP? Get List Of Available Commands \n"), "{got}");
+                assert!(got.ends_with(", PD-SB1, 000001, 0.1.0\n0\n"), "{got}");
+                let spa_lines = got.lines().filter(|l| l.starts_with("1 0x")).count();
+                assert_eq!(spa_lines, PARAMS.len());
+            }
+        }
     }
 
     #[test]

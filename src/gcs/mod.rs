@@ -11,9 +11,10 @@
 pub mod num;
 pub mod params;
 
-use crate::controller::{CommandError, Controller, ControllerConfig};
+use crate::controller::{validate_settings, CommandError, Controller, ControllerConfig, State};
 use num::{
-    parse_decimal, parse_int, write_fixed, write_general, write_i64, write_scaled, write_u64, Decimal,
+    parse_decimal, parse_int, write_f32, write_fixed, write_general, write_i64, write_scaled, write_u64,
+    Decimal,
 };
 
 pub const REPLY_CAPACITY: usize = 4096;
@@ -119,7 +120,7 @@ pub static COMMANDS: &[(&str, &str, &str)] = &[
     ("TMX?", "[{<AxisID>}]", "Get Maximum Commandable Position"),
     ("VEL", "{<AxisID> <Velocity>}", "Set Closed-Loop Velocity"),
     ("VEL?", "[{<AxisID>}]", "Get Closed-Loop Velocity"),
-    ("WPA", "[<Password>]", "Save Parameters To Non-Volatile Memory"),
+    ("WPA", "[<Password>]", "Save Parameters To Non-Volatile Memory (Servo Off And Idle Only)"),
     ("XDA?", "[{<AxisID>}]", "Get Drive Amplitude In V Peak-To-Peak (extension)"),
     ("XDF?", "[{<AxisID>}]", "Get Drive Frequency In Hz (extension)"),
     ("XFT?", "[{<AxisID>}]", "Get Fault Code And Text (extension)"),
@@ -241,23 +242,38 @@ fn query_axes(args: &[&[u8]]) -> Result<usize, i32> {
     Ok(args.len().max(1))
 }
 
-/// `{<AxisID> <Value>}` pairs: all checked, the last value is the one that counts (one axis).
-fn last_pair<'a>(args: &[&'a [u8]]) -> Result<&'a [u8], i32> {
+/// `{<AxisID> <Value>}` pairs: every pair is checked (axis, then `check` on the value), and the
+/// value of the last pair is the one that counts (one axis). A line with any bad pair executes
+/// nothing, so the same checks must pass for every pair, not only the last.
+fn pairs<T>(args: &[&[u8]], mut check: impl FnMut(&[u8]) -> Result<T, i32>) -> Result<T, i32> {
     if args.is_empty() {
         return Err(error::MISSING_PARAM);
     }
     if args.len() % 2 != 0 {
         return Err(error::WRONG_PARAM_COUNT);
     }
-    let mut last: &[u8] = &[];
+    let mut last = Err(error::MISSING_PARAM);
     for pair in args.chunks(2) {
         if let [a, v] = pair {
             axis(a)?;
-            number(v)?;
-            last = v;
+            last = Ok(check(v)?);
         }
     }
-    Ok(last)
+    last
+}
+
+/// A position or distance in mm as nanometres; beyond i64 it is out of limits.
+fn position_nm(t: &[u8]) -> Result<i64, i32> {
+    number(t)?.scaled_i64(6).ok_or(error::POS_OUT_OF_LIMITS)
+}
+
+/// `nm` within the travel limits (`TMN?`..`TMX?`), else error 7.
+fn within_travel(ctl: &Controller, nm: i64) -> Result<i64, i32> {
+    let c = ctl.config();
+    if nm < c.travel_min_nm || nm > c.travel_max_nm {
+        return Err(error::POS_OUT_OF_LIMITS);
+    }
+    Ok(nm)
 }
 
 fn no_args(args: &[&[u8]]) -> GcsResult {
@@ -308,6 +324,8 @@ impl Gcs {
                 self.overflow = false;
                 Some(pending)
             }
+            // A NUL between lines is line noise (a port opening), not a command.
+            0x00 if self.line.is_empty() && !self.overflow => None,
             // Control bytes other than tab and CR are commands of their own (#5, #7, #24; any
             // other is an unknown command), wherever they arrive.
             0x00..=0x08 | 0x0b | 0x0c | 0x0e..=0x1f => Some(Pending::Byte(byte)),
@@ -558,7 +576,7 @@ impl Gcs {
                 }
             }
             "SVO" => {
-                let on = flag(last_pair(args)?)?;
+                let on = pairs(args, flag)?;
                 if ctl.referencing() {
                     return Err(error::CONTROLLER_BUSY);
                 }
@@ -578,7 +596,7 @@ impl Gcs {
                 ctl.set_servo(on).map_err(command_error)?;
             }
             "RON" => {
-                self.reference_mode = flag(last_pair(args)?)?;
+                self.reference_mode = pairs(args, flag)?;
             }
             "FRF" => {
                 for a in args {
@@ -590,8 +608,9 @@ impl Gcs {
                 ctl.start_referencing().map_err(command_error)?;
             }
             "POS" => {
-                let v = number(last_pair(args)?)?;
-                let nm = v.scaled_i64(6).ok_or(error::PARAM_OUT_OF_RANGE)?;
+                // Within the travel limits: beyond them the distance to a later target could
+                // overflow, and the stage cannot be there anyway.
+                let nm = pairs(args, |t| within_travel(ctl, position_nm(t)?))?;
                 if self.reference_mode {
                     return Err(error::NOT_ALLOWED);
                 }
@@ -601,27 +620,38 @@ impl Gcs {
                 ctl.set_reference_here(nm);
             }
             "MOV" => {
-                let v = number(last_pair(args)?)?;
-                let target = v.scaled_i64(6).ok_or(error::POS_OUT_OF_LIMITS)?;
-                self.move_to(ctl, target)?;
+                // Syntax of every pair, then whether a move is allowed at all, then the limits
+                // of every pair.
+                pairs(args, position_nm)?;
+                self.move_allowed(ctl)?;
+                let target = pairs(args, |t| within_travel(ctl, position_nm(t)?))?;
+                ctl.move_to(target).map_err(command_error)?;
             }
             "MVR" => {
-                let v = number(last_pair(args)?)?;
-                let delta = v.scaled_i64(6).ok_or(error::POS_OUT_OF_LIMITS)?;
-                let target = ctl.target_nm().checked_add(delta).ok_or(error::POS_OUT_OF_LIMITS)?;
-                self.move_to(ctl, target)?;
+                pairs(args, position_nm)?;
+                self.move_allowed(ctl)?;
+                let base = ctl.target_nm();
+                let target = pairs(args, |t| {
+                    let target = base.checked_add(position_nm(t)?).ok_or(error::POS_OUT_OF_LIMITS)?;
+                    within_travel(ctl, target)
+                })?;
+                ctl.move_to(target).map_err(command_error)?;
             }
             "VEL" | "ACC" | "DEC" => {
-                let v = number(last_pair(args)?)?;
-                let x = to_f32(&v).map(|x| x * 1e6).filter(|x| x.is_finite() && *x > 0.0);
                 let bad = if name == "VEL" { error::VEL_OUT_OF_LIMITS } else { error::PARAM_OUT_OF_RANGE };
-                let x = x.ok_or(bad)?;
-                let mut cfg = *ctl.config();
-                match name {
-                    "VEL" => cfg.velocity_max_nm_s = x,
-                    "ACC" => cfg.accel_max_nm_s2 = x,
-                    _ => cfg.decel_max_nm_s2 = x,
-                }
+                // Each pair's value is checked as the whole configuration it would make.
+                let cfg = pairs(args, |t| {
+                    let x = to_f32(&number(t)?).map(|x| x * 1e6).filter(|x| x.is_finite() && *x > 0.0);
+                    let x = x.ok_or(bad)?;
+                    let mut cfg = *ctl.config();
+                    match name {
+                        "VEL" => cfg.velocity_max_nm_s = x,
+                        "ACC" => cfg.accel_max_nm_s2 = x,
+                        _ => cfg.decel_max_nm_s2 = x,
+                    }
+                    validate_settings(&cfg).map_err(|_| bad)?;
+                    Ok(cfg)
+                })?;
                 ctl.set_config(cfg).map_err(|_| bad)?;
             }
             "STP" => {
@@ -644,6 +674,11 @@ impl Gcs {
                     [pw] if *pw == b"100" => {}
                     [_] => return Err(error::INVALID_PASSWORD),
                     _ => return Err(error::WRONG_PARAM_COUNT),
+                }
+                // Writing the flash stalls the CPU (about 20 ms on the board): only with the
+                // drive quiet, servo off and nothing moving.
+                if ctl.state() != State::Idle || ctl.servo() || ctl.in_motion() || ctl.referencing() {
+                    return Err(error::NOT_ALLOWED);
                 }
                 if !board.store_parameters(ctl.config()) {
                     return Err(error::FLASH_PROGRAM_FAILED);
@@ -694,18 +729,16 @@ impl Gcs {
         Ok(())
     }
 
-    fn move_to(&mut self, ctl: &mut Controller, target_nm: i64) -> GcsResult {
+    /// Whether a closed-loop move may start: servo on, referenced (with reference mode on),
+    /// not referencing.
+    fn move_allowed(&self, ctl: &Controller) -> GcsResult {
         if ctl.referencing() {
             return Err(error::CONTROLLER_BUSY);
         }
         if !ctl.servo() || (self.reference_mode && !ctl.referenced()) {
             return Err(error::MOVE_WITHOUT_REF_OR_SERVO_OFF);
         }
-        let c = ctl.config();
-        if target_nm < c.travel_min_nm || target_nm > c.travel_max_nm {
-            return Err(error::POS_OUT_OF_LIMITS);
-        }
-        ctl.move_to(target_nm).map_err(command_error)
+        Ok(())
     }
 
     fn spa(&mut self, args: &[&[u8]], ctl: &mut Controller) -> GcsResult {
@@ -727,7 +760,9 @@ impl Gcs {
             }
             let x = match p.kind {
                 params::Kind::Int => v.integer().ok_or(error::PARAM_OUT_OF_RANGE)? as f64,
-                params::Kind::Float => v.to_f64().ok_or(error::PARAM_OUT_OF_RANGE)?,
+                params::Kind::Float | params::Kind::Millimetre => {
+                    v.to_f64().ok_or(error::PARAM_OUT_OF_RANGE)?
+                }
             };
             if !(p.set)(&mut cfg, x) {
                 return Err(error::PARAM_OUT_OF_RANGE);
@@ -786,6 +821,14 @@ fn param_line(out: &mut Out, p: &params::Param, cfg: &ControllerConfig) {
     let v = (p.get)(cfg);
     match p.kind {
         params::Kind::Int => out.fixed(v, 0),
-        params::Kind::Float => out.general(v),
+        params::Kind::Float => {
+            write_f32(out, v as f32);
+        }
+        params::Kind::Millimetre => {
+            // Whole nanometres within ±1 m: mm·1e6 rounds back to the exact count.
+            let x = v * 1e6;
+            let nm = if x >= 0.0 { x + 0.5 } else { x - 0.5 };
+            out.mm(nm as i64);
+        }
     }
 }

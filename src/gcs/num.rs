@@ -315,3 +315,58 @@ pub fn write_general(out: &mut dyn Sink, v: f64) -> bool {
     }
     out.put(s)
 }
+
+/// An f32 with the fewest significant digits (nine at most) that read back as the same f32
+/// through [`parse_decimal`] and [`Decimal::to_f64`]; trailing zeros trimmed: `40`, `0.01`,
+/// `12.3456793`. Values beyond ±9.2e18 saturate; NaN and infinities print as 0. Computed in f64
+/// (software on the Cortex-M4F; only `SPA?` uses it).
+pub fn write_f32(out: &mut dyn Sink, v: f32) -> bool {
+    let v = if v.is_finite() { v } else { 0.0 };
+    let x = f64::from(v);
+    let a = if x < 0.0 { -x } else { x };
+    // Decimal exponent of the leading digit, bounded search.
+    let mut e: i32 = 0;
+    let mut p = 1.0f64;
+    if a >= 1.0 {
+        while a >= p * 10.0 && e < 40 {
+            p *= 10.0;
+            e += 1;
+        }
+    } else if a > 0.0 {
+        while a < p && e > -46 {
+            p /= 10.0;
+            e -= 1;
+        }
+    }
+    let mut best: (i64, u32) = (0, 0);
+    for digits in 1..=9i32 {
+        let decimals = (digits - 1 - e).clamp(0, 18) as u32;
+        let scale = POW10.get(decimals as usize).copied().unwrap_or(1e18);
+        let r = a * scale + 0.5;
+        // `as` saturates.
+        let m = r as i64;
+        best = (m, decimals);
+        // What parse_decimal and to_f64 make of the printed digits.
+        if (m as f64 / scale) as f32 == (if v < 0.0 { -v } else { v }) {
+            break;
+        }
+    }
+    let (m, decimals) = best;
+    let mut buf: Vec<u8, 48> = Vec::new();
+    if !write_scaled(&mut buf, m, decimals) {
+        return false;
+    }
+    let mut s: &[u8] = &buf;
+    if s.contains(&b'.') {
+        while let Some(rest) = s.strip_suffix(b"0") {
+            s = rest;
+        }
+        if let Some(rest) = s.strip_suffix(b".") {
+            s = rest;
+        }
+    }
+    if v < 0.0 && m != 0 && !out.put(b"-") {
+        return false;
+    }
+    out.put(s)
+}

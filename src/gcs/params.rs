@@ -7,14 +7,18 @@ use crate::controller::{ControllerConfig, ReferenceSignal};
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {
     Int,
+    /// An f32 setting: `SPA?` prints as many significant digits as it takes to read back the
+    /// same f32 (nine at most).
     Float,
+    /// A length in mm kept as whole nanometres: `SPA?` prints six decimals, as `TMX?` does.
+    Millimetre,
 }
 
 impl Kind {
     pub fn name(self) -> &'static str {
         match self {
             Kind::Int => "INT",
-            Kind::Float => "FLOAT",
+            Kind::Float | Kind::Millimetre => "FLOAT",
         }
     }
 }
@@ -85,13 +89,16 @@ macro_rules! f32_field {
 /// Sets an i64 nanometre field from millimetres.
 macro_rules! mm_field {
     ($id:expr, $group:expr, $desc:expr, $field:ident) => {
-        float_param!($id, $group, $desc, |c| c.$field as f64 * 1e-6, |c, v| match nm(v) {
-            Some(x) => {
-                c.$field = x;
-                true
-            }
-            None => false,
-        })
+        Param {
+            kind: Kind::Millimetre,
+            ..float_param!($id, $group, $desc, |c| c.$field as f64 * 1e-6, |c, v| match nm(v) {
+                Some(x) => {
+                    c.$field = x;
+                    true
+                }
+                None => false,
+            })
+        }
     };
 }
 
