@@ -270,25 +270,49 @@ pub fn write_fixed(out: &mut dyn Sink, v: f64, decimals: u32) -> bool {
     write_scaled(out, r as i64, decimals)
 }
 
+/// Decimal exponent of the leading digit of `a` ≥ 0, by a bounded search between `lowest` and
+/// `highest` (0 for 0).
+fn leading_exponent<F>(a: F, one: F, highest: i32, lowest: i32) -> i32
+where
+    F: Copy + PartialOrd + core::ops::Mul<Output = F> + core::ops::Div<Output = F> + From<u8>,
+{
+    let ten = F::from(10u8);
+    let zero = F::from(0u8);
+    let (mut e, mut p) = (0, one);
+    if a >= one {
+        while a >= p * ten && e < highest {
+            p = p * ten;
+            e += 1;
+        }
+    } else if a > zero {
+        while a < p && e > lowest {
+            p = p / ten;
+            e -= 1;
+        }
+    }
+    e
+}
+
+/// Trailing zeros of a fraction trimmed, and the point when nothing follows it: `2.500` → `2.5`,
+/// `40.0` → `40`; integers unchanged.
+fn trim_fraction_zeros(mut s: &[u8]) -> &[u8] {
+    if s.contains(&b'.') {
+        while let Some(rest) = s.strip_suffix(b"0") {
+            s = rest;
+        }
+        if let Some(rest) = s.strip_suffix(b".") {
+            s = rest;
+        }
+    }
+    s
+}
+
 /// About seven significant digits (the settings are f32), trailing zeros trimmed: `0.92`,
 /// `2200`, `0.0002`, `-50`. Computed in f32, which the Cortex-M4F does in hardware.
 pub fn write_general(out: &mut dyn Sink, v: f64) -> bool {
     let v = v as f32;
     let a = if v < 0.0 { -v } else { v };
-    // Decimal exponent of the leading digit, bounded search.
-    let mut e: i32 = 0;
-    let mut p = 1.0f32;
-    if a >= 1.0 {
-        while a >= p * 10.0 && e < 18 {
-            p *= 10.0;
-            e += 1;
-        }
-    } else if a > 0.0 {
-        while a < p && e > -18 {
-            p /= 10.0;
-            e -= 1;
-        }
-    }
+    let e = leading_exponent(a, 1.0f32, 18, -18);
     let decimals = (6 - e).clamp(0, 18) as u32;
     let mut scale = 1.0f32;
     for _ in 0..decimals {
@@ -301,15 +325,7 @@ pub fn write_general(out: &mut dyn Sink, v: f64) -> bool {
     if !write_scaled(&mut buf, r as i64, decimals) {
         return false;
     }
-    let mut s: &[u8] = &buf;
-    if s.contains(&b'.') {
-        while let Some(rest) = s.strip_suffix(b"0") {
-            s = rest;
-        }
-        if let Some(rest) = s.strip_suffix(b".") {
-            s = rest;
-        }
-    }
+    let mut s = trim_fraction_zeros(&buf);
     if s == b"-0" {
         s = b"0";
     }
@@ -324,20 +340,7 @@ pub fn write_f32(out: &mut dyn Sink, v: f32) -> bool {
     let v = if v.is_finite() { v } else { 0.0 };
     let x = f64::from(v);
     let a = if x < 0.0 { -x } else { x };
-    // Decimal exponent of the leading digit, bounded search.
-    let mut e: i32 = 0;
-    let mut p = 1.0f64;
-    if a >= 1.0 {
-        while a >= p * 10.0 && e < 40 {
-            p *= 10.0;
-            e += 1;
-        }
-    } else if a > 0.0 {
-        while a < p && e > -46 {
-            p /= 10.0;
-            e -= 1;
-        }
-    }
+    let e = leading_exponent(a, 1.0f64, 40, -46);
     let mut best: (i64, u32) = (0, 0);
     for digits in 1..=9i32 {
         let decimals = (digits - 1 - e).clamp(0, 18) as u32;
@@ -356,15 +359,7 @@ pub fn write_f32(out: &mut dyn Sink, v: f32) -> bool {
     if !write_scaled(&mut buf, m, decimals) {
         return false;
     }
-    let mut s: &[u8] = &buf;
-    if s.contains(&b'.') {
-        while let Some(rest) = s.strip_suffix(b"0") {
-            s = rest;
-        }
-        if let Some(rest) = s.strip_suffix(b".") {
-            s = rest;
-        }
-    }
+    let s = trim_fraction_zeros(&buf);
     if v < 0.0 && m != 0 && !out.put(b"-") {
         return false;
     }
