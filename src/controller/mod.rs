@@ -8,11 +8,14 @@
 //! and moves it by a fraction of its stroke. Supervision puts the drive in a safe state on any
 //! fault; only [`Controller::clear_fault`] leaves it.
 
-use crate::generator::{DacConfig, QuadratureGenerator};
-use crate::model::{MotorConstants, PerVolt, ThrustPoint};
+use crate::generator::QuadratureGenerator;
+use crate::model::{PerVolt, ThrustPoint};
 use crate::profile::Profile;
-use crate::sensors::{Encoder, PreloadCalibration, PreloadCell};
+use crate::sensors::{Encoder, PreloadCell};
 use crate::Fx;
+
+mod config;
+pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
 
 /// DAC samples produced per control period (DAC rate / loop rate).
 pub const DAC_SAMPLES_PER_STEP: usize = 20;
@@ -82,64 +85,6 @@ pub enum ReferenceSignal {
     Index,
     /// The negative limit switch (stages without an index).
     NegativeLimit,
-}
-
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ControllerConfig {
-    pub loop_hz: u32,
-    pub dac: DacConfig,
-    pub motor: MotorConstants,
-    pub encoder_nm_per_count: u32,
-    pub preload: PreloadCalibration,
-    /// Usable preload window (N): below it contact is unreliable, above it the motor blocks.
-    pub preload_min_n: f32,
-    pub preload_max_n: f32,
-    /// Drive frequency for coarse motion (Hz).
-    pub drive_freq_hz: f32,
-    /// Largest peak-to-peak drive voltage the controller commands.
-    pub max_drive_v: f32,
-    /// Share of the model's no-load speed / stall acceleration the profile may use.
-    pub speed_fraction: f32,
-    pub accel_fraction: f32,
-    /// Position → speed feedback gain (1/s).
-    pub kp_per_s: f32,
-    /// Load-estimate integrator gain (N per nm·s).
-    pub ki_n_per_nm_s: f32,
-    /// Thrust-model feedforward on; off leaves plain PI feedback from position error to volts.
-    pub feedforward: bool,
-    /// Plain-feedback gains (feedforward off): volts per nm of error and per nm·s.
-    pub fb_kp_v_per_nm: f32,
-    pub fb_ki_v_per_nm_s: f32,
-    /// Known steady load the motor pushes against along +x (N; e.g. 2.0 for a 2 N weight pulling
-    /// toward −x). The load observer starts from it and refines it while moving.
-    pub expected_load_n: f32,
-    /// Past this lag behind the profile the profile waits for the slider (nm).
-    pub profile_wait_lag_nm: f32,
-    /// Least speed command while approaching the target after the profile has ended (nm/s).
-    pub approach_speed_nm_s: f32,
-    /// Hand-off to the static fine mode within this distance of the target (nm).
-    pub fine_window_nm: f32,
-    /// Fraction of the position error the fine loop corrects per period.
-    pub fine_gain: f32,
-    /// On-target window and settle time (as PI's ONT?).
-    pub on_target_window_nm: i64,
-    pub settle_time_s: f32,
-    pub following_error_limit_nm: f32,
-    pub stall_time_s: f32,
-    pub encoder_jump_counts: i32,
-    pub travel_min_nm: i64,
-    pub travel_max_nm: i64,
-    /// Closed-loop speed, speed-up and braking limits (as PI's VEL, ACC, DEC). The profile uses
-    /// the lower of these and what the thrust model allows at the measured preload.
-    pub velocity_max_nm_s: f32,
-    pub accel_max_nm_s2: f32,
-    pub decel_max_nm_s2: f32,
-    /// Referencing: the mark, the position it is given, the drive used to search for it and how
-    /// long the search may take.
-    pub reference_signal: ReferenceSignal,
-    pub reference_position_nm: i64,
-    pub reference_drive_v: f32,
-    pub reference_timeout_s: f32,
 }
 
 /// What the board gives each period.
@@ -1072,68 +1017,5 @@ impl Controller {
         self.generator.set_frequency_hz(self.open_loop_hz);
         self.generator.set_amplitude_v(self.open_loop_v);
         self.drive_v = self.open_loop_v;
-    }
-}
-
-fn finite_positive(x: f32) -> bool {
-    x.is_finite() && x > 0.0
-}
-fn finite_non_negative(x: f32) -> bool {
-    x.is_finite() && x >= 0.0
-}
-fn fraction(x: f32) -> bool {
-    x.is_finite() && x > 0.0 && x <= 1.0
-}
-
-/// Largest travel limit either way (1 m): positions stay far from i64 and f32 trouble.
-pub const MAX_TRAVEL_NM: i64 = 1_000_000_000;
-
-/// Checks the settings a user may change for values the controller can work with.
-pub fn validate_settings(c: &ControllerConfig) -> Result<(), CommandError> {
-    let d = &c.dac;
-    let range_v = d.max_v - d.min_v;
-    let p = &c.preload;
-    let ok = finite_positive(c.drive_freq_hz)
-        && c.drive_freq_hz >= d.min_freq_hz
-        && c.drive_freq_hz <= d.max_freq_hz
-        && finite_positive(c.max_drive_v)
-        && c.max_drive_v <= range_v
-        && finite_non_negative(c.preload_min_n)
-        && c.preload_max_n.is_finite()
-        && c.preload_min_n < c.preload_max_n
-        && fraction(c.speed_fraction)
-        && fraction(c.accel_fraction)
-        && finite_non_negative(c.kp_per_s)
-        && finite_non_negative(c.ki_n_per_nm_s)
-        && finite_non_negative(c.fb_kp_v_per_nm)
-        && finite_non_negative(c.fb_ki_v_per_nm_s)
-        && c.expected_load_n.is_finite()
-        && finite_positive(c.profile_wait_lag_nm)
-        && finite_positive(c.approach_speed_nm_s)
-        && finite_non_negative(c.fine_window_nm)
-        && fraction(c.fine_gain)
-        && c.on_target_window_nm >= 0
-        && finite_non_negative(c.settle_time_s)
-        && finite_positive(c.following_error_limit_nm)
-        && finite_positive(c.stall_time_s)
-        && c.encoder_jump_counts > 0
-        && c.travel_min_nm < c.travel_max_nm
-        && c.travel_min_nm >= -MAX_TRAVEL_NM
-        && c.travel_max_nm <= MAX_TRAVEL_NM
-        && c.reference_position_nm.abs() <= MAX_TRAVEL_NM
-        && finite_positive(c.velocity_max_nm_s)
-        && finite_positive(c.accel_max_nm_s2)
-        && finite_positive(c.decel_max_nm_s2)
-        && finite_positive(c.reference_drive_v)
-        && c.reference_drive_v <= c.max_drive_v
-        && finite_positive(c.reference_timeout_s)
-        && p.newton_per_word.is_finite()
-        && p.newton_per_word != 0.0
-        && p.min_valid_word < p.max_valid_word
-        && fraction(p.filter_alpha);
-    if ok {
-        Ok(())
-    } else {
-        Err(CommandError::InvalidValue)
     }
 }
