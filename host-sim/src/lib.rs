@@ -1,8 +1,10 @@
 //! host-sim: the physical plant of the shaking-beam piezo motor, its steady-state thrust model,
 //! and the command-line tools around them.
+pub mod characterize;
 pub mod curve;
 pub mod effects;
 pub mod gap;
+pub mod gcs_client;
 pub mod measure;
 pub mod measured_csv;
 pub mod moves;

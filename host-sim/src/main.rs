@@ -82,6 +82,9 @@ enum Command {
     Gap(host_sim::gap::GapArgs),
     /// Synthetic measured data from the plant with hidden effects (the gap workflow's input).
     Measure(host_sim::measure::MeasureArgs),
+    /// A board (or `serve`) measures its own thrust–speed points over GCS: open-loop bursts,
+    /// written as the gap workflow's CSV.
+    Characterize(host_sim::characterize::CharacterizeArgs),
 }
 
 #[derive(clap::Args)]
@@ -260,6 +263,7 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Gap(args) => host_sim::gap::run(args, &params)?,
         Command::Measure(args) => host_sim::measure::run(args, &params)?,
+        Command::Characterize(args) => host_sim::characterize::run(&args)?,
         Command::Demo { plot: plot_path } => {
             println!("Shaking-beam piezo motor, closed loop: the firmware's controller against the plant");
             let (rows, trace) = moves::demo(&params, |label| eprintln!("demo: {label}..."))?;
