@@ -15,6 +15,9 @@ struct Cli {
     /// Parameter file (TOML); the compiled-in prototype set when absent.
     #[arg(long, global = true, value_name = "FILE")]
     params: Option<PathBuf>,
+    /// Moving mass of the slider and its payload (kg); overrides the file's `slider.mass_kg`.
+    #[arg(long, global = true, value_name = "KG", allow_negative_numbers = true)]
+    slider_mass_kg: Option<f64>,
     #[command(subcommand)]
     command: Command,
 }
@@ -40,8 +43,30 @@ enum Command {
     },
     /// The paper's figures (physics.md §5): theirs, ours, the band we hold, pass/fail.
     Paper {
+        /// Print one JSON array of rows {name, paper, ours, unit, tolerance, pass, plant, plant_pass}.
         #[arg(long)]
         json: bool,
+        /// Evaluate the steady-state model and the stator's modes only (skip the plant runs).
+        #[arg(long)]
+        model_only: bool,
+    },
+    /// One drive period of the plant, sample by sample: foot normal and tangential motion, contact
+    /// and friction force, foot and slider speed (after the plant has settled at the drive point).
+    Trace {
+        #[command(flatten)]
+        point: PointArgs,
+        /// Constant load opposing the motion (N), as a hanging weight.
+        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+        load_n: f64,
+        /// Trace these slider masses side by side (kg, comma-separated) instead of the file's.
+        #[arg(long, value_delimiter = ',', value_name = "KG,KG,...", allow_negative_numbers = true)]
+        masses_kg: Vec<f64>,
+        /// Print one JSON object (every sample) instead of the summary.
+        #[arg(long)]
+        json: bool,
+        /// Also draw the period to this SVG file.
+        #[arg(long, value_name = "FILE.svg")]
+        plot: Option<PathBuf>,
     },
     /// One closed-loop move from 0: the firmware's controller against the plant.
     Move {
@@ -179,6 +204,9 @@ fn run(cli: Cli) -> Result<()> {
         Some(path) => Params::load(path)?,
         None => Params::prototype(),
     };
+    if let Some(mass_kg) = cli.slider_mass_kg {
+        params.slider.mass_kg = validated_slider_mass_kg(mass_kg)?;
+    }
     match cli.command {
         Command::Curve { point, points, friction, json, plot: plot_path } => {
             let op = point.validate(&params)?;
@@ -201,28 +229,42 @@ fn run(cli: Cli) -> Result<()> {
                 }
             }
         }
-        Command::Paper { json } => {
-            let rows = paper::rows(&params);
+        Command::Paper { json, model_only } => {
+            let evaluate =
+                if model_only { paper::Evaluate::ModelOnly } else { paper::Evaluate::ModelAndPlant };
+            let rows = paper::rows(&params, evaluate, |what| eprintln!("paper: {what}..."));
             if json {
                 println!("{}", serde_json::to_string_pretty(&rows)?);
             } else {
                 println!(
-                    "{:<30} {:<34} {:>10} {:<6} {:<36} result",
-                    "figure", "paper", "ours", "unit", "we hold"
+                    "slider {} kg, counterweight {} kg, foot {} kg",
+                    params.slider.mass_kg, params.stator.counterweight_mass_kg, params.stator.foot_mass_kg
                 );
+                println!(
+                    "{:<30} {:<34} {:>10} {:>10} {:<6} {:<34} model / plant",
+                    "figure", "paper", "model", "plant", "unit", "we hold"
+                );
+                let verdict = |pass: bool| if pass { "pass" } else { "FAIL" };
                 for r in &rows {
                     println!(
-                        "{:<30} {:<34} {:>10.3} {:<6} {:<36} {}",
+                        "{:<30} {:<34} {:>10.3} {:>10} {:<6} {:<34} {} / {}",
                         r.name,
                         r.paper,
                         r.ours,
+                        r.plant.map_or("-".into(), |v| format!("{v:.3}")),
                         r.unit,
                         r.tolerance,
-                        if r.pass { "pass" } else { "FAIL" }
+                        verdict(r.pass),
+                        r.plant_pass.map_or("-", verdict),
                     );
                 }
                 let failed = rows.iter().filter(|r| !r.pass).count();
-                println!("{} of {} rows pass", rows.len() - failed, rows.len());
+                let plant_rows = rows.iter().filter(|r| r.plant_pass.is_some()).count();
+                let plant_failed = rows.iter().filter(|r| r.plant_pass == Some(false)).count();
+                println!("model: {} of {} rows pass", rows.len() - failed, rows.len());
+                if plant_rows > 0 {
+                    println!("plant: {} of {} rows pass", plant_rows - plant_failed, plant_rows);
+                }
             }
         }
         Command::Move { to_um, preload_n, load_n, no_feedforward, load_known, json, plot: plot_path } => {
@@ -258,6 +300,53 @@ fn run(cli: Cli) -> Result<()> {
                         r.overshoot_nm,
                         r.max_following_error_um
                     ),
+                }
+            }
+        }
+        Command::Trace { point, load_n, masses_kg, json, plot: plot_path } => {
+            let op = point.validate(&params)?;
+            if point.direction != 1 {
+                bail!(
+                    "--direction: trace runs the +1 direction only (the other is its mirror), got {}",
+                    point.direction
+                );
+            }
+            if !(load_n.is_finite() && load_n.abs() <= 20.0) {
+                bail!("--load-n must be within ±20 N, got {load_n}");
+            }
+            let masses = if masses_kg.is_empty() { vec![params.slider.mass_kg] } else { masses_kg };
+            let mut traces = Vec::new();
+            for m in masses {
+                let mut p = params.clone();
+                p.slider.mass_kg = validated_slider_mass_kg(m)?;
+                traces.push(host_sim::trace::one_period(&p, op, load_n, 720));
+            }
+            if let Some(path) = &plot_path {
+                plot::period(&traces, path)?;
+            }
+            if json {
+                println!("{}", serde_json::to_string_pretty(&traces)?);
+            } else {
+                println!(
+                    "F0 {} N, {} V p-p, {} Hz, load {} N: one settled drive period",
+                    op.preload_n, op.voltage_v, op.frequency_hz, load_n
+                );
+                println!(
+                    "{:>10} {:>14} {:>16} {:>10} {:>16}",
+                    "slider kg", "speed mm/s", "advance µm/per", "contact %", "stick % of contact"
+                );
+                for t in &traces {
+                    println!(
+                        "{:>10} {:>14.4} {:>16.4} {:>10.1} {:>16.1}",
+                        t.slider_mass_kg,
+                        t.mean_speed_mm_s,
+                        t.advance_per_period_um,
+                        100.0 * t.contact_fraction,
+                        100.0 * t.stick_fraction_of_contact
+                    );
+                }
+                if let Some(path) = &plot_path {
+                    println!("plot written to {}", path.display());
                 }
             }
         }
@@ -305,6 +394,14 @@ fn run(cli: Cli) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The moving mass the plant accepts: positive, at most a tonne.
+fn validated_slider_mass_kg(mass_kg: f64) -> Result<f64> {
+    if !(mass_kg.is_finite() && mass_kg > 0.0 && mass_kg <= 1000.0) {
+        bail!("--slider-mass-kg must be in (0, 1000] kg, got {mass_kg}");
+    }
+    Ok(mass_kg)
 }
 
 fn print_curve(c: &curve::Curve) {

@@ -76,6 +76,11 @@ pub struct Contact {
     pub stiffness_n_per_m: f64,
     /// Damping ratio of the foot on the contact spring (Kelvin–Voigt, unilateral).
     pub damping_ratio: f64,
+    /// Tangential (shear) stiffness of the friction layer: the pre-sliding spring between foot
+    /// and slider while they stick (Coulomb laws). For a layer in shear `kt = G·Ac/hc =
+    /// kc/(2(1+ν))`; 0 = rigid (the slider takes the foot's speed exactly while sticking).
+    #[serde(default)]
+    pub tangential_stiffness_n_per_m: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -197,6 +202,7 @@ impl Params {
             ("stator.flexure_stiffness_n_per_m", self.stator.flexure_stiffness_n_per_m),
             ("stator.damping_ratio", self.stator.damping_ratio),
             ("contact.damping_ratio", self.contact.damping_ratio),
+            ("contact.tangential_stiffness_n_per_m", self.contact.tangential_stiffness_n_per_m),
             ("friction.viscous_n_s_per_m", self.friction.viscous_n_s_per_m),
             ("friction.lugre_bristle_damping_s_per_m", self.friction.lugre_bristle_damping_s_per_m),
             ("slider.damping_n_s_per_m", self.slider.damping_n_s_per_m),

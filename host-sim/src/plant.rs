@@ -59,6 +59,50 @@ impl Transition {
     }
 }
 
+/// Stator normal dynamics (eqs. 4 and 6) as a state matrix over `[y1, v1, y2, v2, drive, anchor]`,
+/// the two inputs augmented as constant states so that `exp(A·h)` gives the exact zero-order-hold
+/// transition. `contact` adds the contact spring and dashpot on the foot.
+fn state_matrix(p: &Params, contact: Option<(f64, f64)>) -> SMatrix<f64, 6, 6> {
+    let m1 = p.stator.foot_mass_kg;
+    let m2 = p.stator.counterweight_mass_kg;
+    let k1 = p.k1_n_per_m();
+    let k2 = p.stator.preload_spring_n_per_m;
+    let zeta = p.stator.damping_ratio;
+    // Structural damping: each spring gets the dashpot of its own mode's damping ratio.
+    let c1 = 2.0 * zeta * (k1 * m1 * m2 / (m1 + m2)).sqrt();
+    let c2 = 2.0 * zeta * (k2 * (m1 + m2)).sqrt();
+    let (kk, cc) = contact.unwrap_or((0.0, 0.0));
+    let mut a = SMatrix::<f64, 6, 6>::zeros();
+    a[(0, 1)] = 1.0;
+    a[(1, 0)] = -(k1 + kk) / m1;
+    a[(1, 1)] = -(c1 + cc) / m1;
+    a[(1, 2)] = k1 / m1;
+    a[(1, 3)] = c1 / m1;
+    a[(1, 4)] = 1.0 / m1; // drive force on the foot
+    a[(2, 3)] = 1.0;
+    a[(3, 0)] = k1 / m2;
+    a[(3, 1)] = c1 / m2;
+    a[(3, 2)] = -(k1 + k2) / m2;
+    a[(3, 3)] = -(c1 + c2) / m2;
+    a[(3, 4)] = -1.0 / m2; // its reaction on the counterweight
+    a[(3, 5)] = 1.0 / m2; // preload spring anchor force k2·a enters as input 2
+    a
+}
+
+/// Natural frequencies (Hz, ascending) of the stator's normal dynamics, from the eigenvalues of
+/// the plant's own state matrix with damping removed: without contact (the paper's "first two
+/// resonance frequencies", §4.3) or with the foot on the contact spring.
+pub fn stator_modes_hz(p: &Params, with_contact: bool) -> [f64; 2] {
+    let mut undamped = p.clone();
+    undamped.stator.damping_ratio = 0.0;
+    let contact = with_contact.then_some((p.contact.stiffness_n_per_m, 0.0));
+    let a = state_matrix(&undamped, contact).fixed_view::<4, 4>(0, 0).into_owned();
+    let mut f: Vec<f64> =
+        a.complex_eigenvalues().iter().filter(|l| l.im > 0.0).map(|l| l.im / std::f64::consts::TAU).collect();
+    f.sort_by(f64::total_cmp);
+    [f.first().copied().unwrap_or(f64::NAN), f.get(1).copied().unwrap_or(f64::NAN)]
+}
+
 pub struct Plant {
     p: Params,
     dt_s: f64,
@@ -85,6 +129,8 @@ pub struct Plant {
     slider_x_m: f64,
     slider_v_m_s: f64,
     bristle_m: f64,
+    /// Shear of the friction layer (foot contact point minus slider, m) while they stick.
+    shear_m: f64,
     friction_model: FrictionModel,
     // Last step's outputs.
     contact_force_n: f64,
@@ -147,34 +193,15 @@ impl Plant {
     /// slider at 0.
     pub fn new(p: &Params, preload_n: f64) -> Self {
         let m1 = p.stator.foot_mass_kg;
-        let m2 = p.stator.counterweight_mass_kg;
         let k1 = p.k1_n_per_m();
         let k2 = p.stator.preload_spring_n_per_m;
         // `hertz_contact`: the contact stiffness at this static preload (unchanged without it).
         let kc = p.effects.contact_stiffness_n_per_m(p.contact.stiffness_n_per_m, preload_n);
-        let zeta = p.stator.damping_ratio;
-        // Structural damping: each spring gets the dashpot of its own mode's damping ratio.
-        let c1 = 2.0 * zeta * (k1 * m1 * m2 / (m1 + m2)).sqrt();
-        let c2 = 2.0 * zeta * (k2 * (m1 + m2)).sqrt();
         let c3 = 2.0 * p.contact.damping_ratio * (kc * m1).sqrt();
         let dt = p.integrator.step_s;
 
         let build = |contact: bool| {
-            let (kk, cc) = if contact { (kc, c3) } else { (0.0, 0.0) };
-            let mut a = SMatrix::<f64, 6, 6>::zeros();
-            a[(0, 1)] = 1.0;
-            a[(1, 0)] = -(k1 + kk) / m1;
-            a[(1, 1)] = -(c1 + cc) / m1;
-            a[(1, 2)] = k1 / m1;
-            a[(1, 3)] = c1 / m1;
-            a[(1, 4)] = 1.0 / m1; // drive force on the foot
-            a[(2, 3)] = 1.0;
-            a[(3, 0)] = k1 / m2;
-            a[(3, 1)] = c1 / m2;
-            a[(3, 2)] = -(k1 + k2) / m2;
-            a[(3, 3)] = -(c1 + c2) / m2;
-            a[(3, 4)] = -1.0 / m2; // its reaction on the counterweight
-            a[(3, 5)] = 1.0 / m2; // preload spring anchor force k2·a enters as input 2
+            let a = state_matrix(p, if contact { Some((kc, c3)) } else { None });
             let mut levels = [Transition { phi: [[0.0; 4]; 4], gamma: [[0.0; 2]; 4] }; SWITCH_LEVELS + 1];
             for (lvl, t) in levels.iter_mut().enumerate() {
                 let h = dt / f64::from(1u32 << lvl);
@@ -218,6 +245,7 @@ impl Plant {
             slider_x_m: 0.0,
             slider_v_m_s: 0.0,
             bristle_m: 0.0,
+            shear_m: 0.0,
             friction_model: p.friction.model,
             contact_force_n: preload_n,
             friction_force_n: 0.0,
@@ -298,6 +326,13 @@ impl Plant {
         let now = self.preload_force_n();
         self.anchor_m += (preload_n - now) / self.p.stator.preload_spring_n_per_m;
         self.preload_setting_n = preload_n;
+    }
+    /// Pulls the stator back so the foot rests `gap_m` clear of the slider, at rest and without
+    /// preload (for measuring the free, non-contact response).
+    pub fn lift_off(&mut self, gap_m: f64) {
+        self.anchor_m = -gap_m.abs();
+        self.x = [self.anchor_m, 0.0, self.anchor_m, 0.0];
+        self.preload_setting_n = 0.0;
     }
     /// Drive sense the plant currently sees (+1 or −1): the sense in which the stack voltages
     /// turn (channel 2 lagging channel 1 is +1). Tracked only with `assembly_asymmetry`.
@@ -487,6 +522,10 @@ impl Plant {
                 // Velocity-level implicit law: the friction needed to make the slider move with
                 // the foot at the end of the step, if within the sticking limit; otherwise
                 // sliding friction (plus εc's viscous part) in the direction of that need.
+                let kt = self.p.contact.tangential_stiffness_n_per_m;
+                if kt > 0.0 {
+                    return self.slider_on_shear_spring(fc, foot_speed, ext, mu_stick, mu_scale);
+                }
                 let need = mass * (foot_speed - v_old) / dt - ext;
                 if fc > 0.0 && need.abs() <= mu_stick * fc {
                     need
@@ -512,6 +551,43 @@ impl Plant {
                 self.bristle_m = z_new;
                 fc * (s0 * z_new + f.lugre_bristle_damping_s_per_m * z_rate) + f.viscous_n_s_per_m * slip
             }
+        };
+        self.friction_force_n = friction;
+        self.slider_v_m_s = v_old + dt * (ext + friction) / mass;
+        self.slider_x_m += dt * self.slider_v_m_s;
+    }
+
+    /// Coulomb laws with a compliant friction layer: while they stick, foot and slider are joined
+    /// by the layer's shear spring `kt` (with the contact's damping ratio on the slider mass);
+    /// the spring force is capped at the sticking limit, beyond which the pair slides at μd·Fc
+    /// and the layer stays sheared by the sliding force. Without contact the layer relaxes.
+    /// Implicit in the slider speed, so a stiff layer on a light slider stays stable.
+    fn slider_on_shear_spring(&mut self, fc: f64, foot_speed: f64, ext: f64, mu_stick: f64, mu_scale: f64) {
+        let dt = self.dt_s;
+        let f = &self.p.friction;
+        let mass = self.p.slider.mass_kg;
+        let kt = self.p.contact.tangential_stiffness_n_per_m;
+        let ct = 2.0 * self.p.contact.damping_ratio * (kt * mass).sqrt();
+        let v_old = self.slider_v_m_s;
+        let friction = if fc > 0.0 {
+            // Stick trial: F = kt·(s + dt·(vf − v)) + ct·(vf − v), v = v_old + dt·(ext + F)/m.
+            let a = kt * dt + ct;
+            let v_new =
+                (v_old + dt / mass * (ext + kt * self.shear_m + a * foot_speed)) / (1.0 + dt / mass * a);
+            let trial = kt * (self.shear_m + dt * (foot_speed - v_new)) + ct * (foot_speed - v_new);
+            if trial.abs() <= mu_stick * fc {
+                self.shear_m += dt * (foot_speed - v_new);
+                trial
+            } else {
+                let slide = mu_scale * f.mu_dynamic * fc * trial.signum();
+                let k = f.viscous_n_s_per_m * dt / mass;
+                let v_new = (v_old + dt * (ext + slide) / mass + k * foot_speed) / (1.0 + k);
+                self.shear_m = slide / kt;
+                slide + f.viscous_n_s_per_m * (foot_speed - v_new)
+            }
+        } else {
+            self.shear_m = 0.0;
+            0.0
         };
         self.friction_force_n = friction;
         self.slider_v_m_s = v_old + dt * (ext + friction) / mass;

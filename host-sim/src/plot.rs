@@ -115,3 +115,83 @@ pub fn motion(trace: &[crate::moves::TracePoint], title: &str, path: &Path) -> R
     root.present().map_err(|e| anyhow!("plot: {e}"))?;
     Ok(())
 }
+
+/// One drive period of one or more plants (e.g. a light and a heavy carriage) in three panels:
+/// foot motion, contact and friction force, foot and slider speed; one colour per trace.
+pub fn period(traces: &[crate::trace::PeriodTrace], path: &Path) -> Result<()> {
+    use crate::trace::PeriodSample;
+    let err = |e: DrawingAreaErrorKind<_>| anyhow!("plot {}: {e}", path.display());
+    let root = SVGBackend::new(path, (900, 900)).into_drawing_area();
+    root.fill(&WHITE).map_err(err)?;
+    let panels = root.split_evenly((3, 1));
+    let colours = [RED, BLUE, GREEN, MAGENTA, BLACK];
+    type Pick = fn(&PeriodSample) -> f64;
+    let rows: [(&str, &[(&str, Pick)]); 3] = [
+        (
+            "foot (µm): normal —, tangential - -",
+            &[("normal", |s| s.foot_normal_um), ("tangential", |s| s.foot_tangential_um)],
+        ),
+        (
+            "force (N): contact —, friction - -",
+            &[("contact", |s| s.contact_force_n), ("friction", |s| s.friction_force_n)],
+        ),
+        (
+            "speed (mm/s): slider —, foot - -",
+            &[("slider", |s| s.slider_speed_mm_s), ("foot", |s| s.foot_speed_mm_s)],
+        ),
+    ];
+    for (panel, (label, series)) in panels.iter().zip(rows) {
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for t in traces {
+            for s in &t.samples {
+                for (_, pick) in series {
+                    lo = lo.min(pick(s));
+                    hi = hi.max(pick(s));
+                }
+            }
+        }
+        if !lo.is_finite() {
+            (lo, hi) = (0.0, 1.0);
+        }
+        let pad = ((hi - lo) * 0.05).max(1e-9);
+        let mut chart = ChartBuilder::on(panel)
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..360.0, (lo - pad)..(hi + pad))
+            .map_err(err)?;
+        chart.configure_mesh().x_desc("drive phase (deg)").y_desc(label).draw().map_err(err)?;
+        for (t, colour) in traces.iter().zip(colours.iter().cycle()) {
+            for (k, (_, pick)) in series.iter().enumerate() {
+                let points = t.samples.iter().map(|s| (s.phase_deg, pick(s)));
+                let style = colour.stroke_width(if k == 0 { 2 } else { 1 });
+                if k == 0 {
+                    chart
+                        .draw_series(LineSeries::new(points, style))
+                        .map_err(err)?
+                        .label(format!("slider {} kg: {:.3} mm/s", t.slider_mass_kg, t.mean_speed_mm_s))
+                        .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
+                } else {
+                    // Dashed: every other short segment.
+                    let pts: Vec<(f64, f64)> = points.collect();
+                    chart
+                        .draw_series(
+                            pts.chunks(4)
+                                .step_by(2)
+                                .map(|c| PathElement::new(c.to_vec(), colour.stroke_width(1))),
+                        )
+                        .map_err(err)?;
+                }
+            }
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(err)?;
+    }
+    root.present().map_err(err)?;
+    Ok(())
+}

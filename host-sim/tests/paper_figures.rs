@@ -75,7 +75,7 @@ fn max_thrust_ceramic_vs_epoxy_contact_at_the_papers_fixed_amplitude() {
 
 #[test]
 fn the_paper_command_reports_every_row_passing() {
-    let rows = host_sim::paper::rows(&Params::prototype());
+    let rows = host_sim::paper::rows(&Params::prototype(), host_sim::paper::Evaluate::ModelOnly, |_| {});
     assert!(rows.len() >= 12);
     for r in rows {
         assert!(r.pass, "{} = {} {} outside {}", r.name, r.ours, r.unit, r.tolerance);
