@@ -331,17 +331,24 @@ fn run(cli: Cli) -> Result<()> {
                     "F0 {} N, {} V p-p, {} Hz, load {} N: one settled drive period",
                     op.preload_n, op.voltage_v, op.frequency_hz, load_n
                 );
+                if let Some(t) = traces.first() {
+                    println!(
+                        "contact {:.1} % of the period, centred at {:.0}°; the foot's peak forward speed is at {:.0}°",
+                        100.0 * t.contact_fraction,
+                        t.contact_centre_deg,
+                        t.foot_peak_speed_deg
+                    );
+                }
                 println!(
-                    "{:>10} {:>14} {:>16} {:>10} {:>16}",
-                    "slider kg", "speed mm/s", "advance µm/per", "contact %", "stick % of contact"
+                    "{:>10} {:>14} {:>16} {:>18}",
+                    "slider kg", "speed mm/s", "advance µm/per", "stick % of contact"
                 );
                 for t in &traces {
                     println!(
-                        "{:>10} {:>14.4} {:>16.4} {:>10.1} {:>16.1}",
+                        "{:>10} {:>14.4} {:>16.4} {:>18.1}",
                         t.slider_mass_kg,
                         t.mean_speed_mm_s,
                         t.advance_per_period_um,
-                        100.0 * t.contact_fraction,
                         100.0 * t.stick_fraction_of_contact
                     );
                 }

@@ -40,6 +40,10 @@ pub struct PeriodTrace {
     pub stick_fraction_of_contact: f64,
     /// Slider displacement over the traced period (µm).
     pub advance_per_period_um: f64,
+    /// Phase of the contact force's centroid (deg): where in the period the foot presses.
+    pub contact_centre_deg: f64,
+    /// Phase of the foot's peak forward speed (deg): where the model centres the contact.
+    pub foot_peak_speed_deg: f64,
     pub samples: Vec<PeriodSample>,
 }
 
@@ -68,7 +72,6 @@ pub fn one_period(p: &Params, op: OperatingPoint, load_n: f64, samples: usize) -
     let dt = plant.step_s();
     let steps = (period_s / dt).round() as usize;
     let every = (steps / samples.max(2)).max(1);
-    let start_s = plant.time_s();
     let start_x = plant.slider_position_m();
     let mut foot_x = 0.0;
     let mut raw = Vec::with_capacity(steps / every + 1);
@@ -89,7 +92,8 @@ pub fn one_period(p: &Params, op: OperatingPoint, load_n: f64, samples: usize) -
             }
         }
         if i % every == 0 {
-            let phase = (plant.time_s() - start_s) / period_s * 360.0;
+            // Phase at the end of this step, exact in whole steps.
+            let phase = (i + 1) as f64 / steps as f64 * 360.0;
             raw.push(PeriodSample {
                 phase_deg: phase,
                 foot_normal_um: plant.foot_normal_m() * 1e6,
@@ -107,7 +111,21 @@ pub fn one_period(p: &Params, op: OperatingPoint, load_n: f64, samples: usize) -
     for s in &mut raw {
         s.foot_tangential_um -= mean_x;
     }
+    // Circular means, so a contact arc across 0° is not split.
+    let circular = |weight: &dyn Fn(&PeriodSample) -> f64| {
+        let (mut c, mut s) = (0.0, 0.0);
+        for x in &raw {
+            let (sin, cos) = x.phase_deg.to_radians().sin_cos();
+            c += weight(x) * cos;
+            s += weight(x) * sin;
+        }
+        s.atan2(c).to_degrees().rem_euclid(360.0)
+    };
+    let contact_centre_deg = circular(&|x| x.contact_force_n);
+    let foot_peak_speed_deg = circular(&|x| x.foot_speed_mm_s.max(0.0).powi(4));
     PeriodTrace {
+        contact_centre_deg,
+        foot_peak_speed_deg,
         slider_mass_kg: p.slider.mass_kg,
         preload_n: op.preload_n,
         voltage_v: op.voltage_v,

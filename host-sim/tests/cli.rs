@@ -91,3 +91,22 @@ fn the_shipped_parameter_file_round_trips() {
     let unknown = format!("{}\n[extra]\nx = 1\n", host_sim::params::PROTOTYPE_TOML);
     assert!(host_sim::params::Params::from_toml(&unknown).is_err());
 }
+
+#[test]
+fn slider_mass_override_is_checked_and_applied_after_any_subcommand() {
+    assert_one_line_error(&["curve", "--slider-mass-kg", "-1"], "--slider-mass-kg");
+    assert_one_line_error(&["paper", "--model-only", "--slider-mass-kg", "0"], "--slider-mass-kg");
+    assert_one_line_error(&["trace", "--masses-kg", "0.3,nan"], "--slider-mass-kg");
+    // The override reaches the plant: the trace reports the mass it ran.
+    let out = host_sim(&["trace", "--frequency-hz", "2000", "--slider-mass-kg", "0.7", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
+    let t = &v[0];
+    assert_eq!(t["slider_mass_kg"], 0.7);
+    // One period of 2 kHz at the plant's 1 µs step: 500 samples, phases within [0, 360].
+    let samples = t["samples"].as_array().expect("samples");
+    assert_eq!(samples.len(), 500);
+    assert!(samples.iter().all(|s| (0.0..=360.0).contains(&s["phase_deg"].as_f64().unwrap())));
+    let contact = t["contact_fraction"].as_f64().unwrap();
+    assert!(contact > 0.0 && contact < 1.0, "16 N is intermittent contact: {contact}");
+}
