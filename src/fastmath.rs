@@ -1,5 +1,5 @@
 //! The one square root of the core. On the Cortex-M4F it is the FPU's VSQRT (14 cycles); on
-//! other targets (host tests, host-sim) Newton iterations that reach f32 precision.
+//! other targets (host tests, host-sim) Newton iterations in f64, rounded to the same bits.
 
 /// √x for x ≥ 0; 0 for negative numbers and NaN.
 #[inline]
@@ -37,11 +37,14 @@ fn hw_sqrt(x: f32) -> f32 {
     if x.is_infinite() {
         return x;
     }
-    // Start from the exponent halved (within a factor √2 of the root), then Newton: the
-    // relative error squares each step, so six steps reach f32 precision for any positive x.
-    let mut r = f32::from_bits((x.to_bits() >> 1) + 0x1fc0_0000);
-    for _ in 0..6 {
-        r = 0.5 * (r + x / r);
+    // Newton in f64 from the exponent halved (within a factor √2 of the root): the relative
+    // error squares each step, so seven steps reach f64 precision, and rounding that to f32 gives
+    // the correctly rounded root — the very bits the M4F's VSQRT returns (IEEE 754), so host and
+    // target builds of the core agree bit for bit (`host-sim pil` counts any difference).
+    let xd = f64::from(x);
+    let mut r = f64::from(f32::from_bits((x.to_bits() >> 1) + 0x1fc0_0000));
+    for _ in 0..7 {
+        r = 0.5 * (r + xd / r);
     }
-    r
+    r as f32
 }

@@ -19,6 +19,7 @@ pub mod gcs;
 pub mod generator;
 pub mod model;
 pub mod motor_table;
+pub mod pil_wire;
 pub mod profile;
 pub mod sensors;
 pub mod storage;

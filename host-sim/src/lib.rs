@@ -10,6 +10,7 @@ pub mod measured_csv;
 pub mod moves;
 pub mod paper;
 pub mod params;
+pub mod pil;
 pub mod plant;
 pub mod plant_figures;
 pub mod plot;

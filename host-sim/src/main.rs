@@ -97,6 +97,10 @@ enum Command {
         #[arg(long, value_name = "FILE.svg", default_value = "demo.svg")]
         plot: PathBuf,
     },
+    /// Processor in the loop: one closed-loop move with the control core running on an emulated
+    /// Cortex-M4F (QEMU) against the plant; instruction counts per tick and per state, and every
+    /// period whose outputs differ from the host build's.
+    Pil(host_sim::pil::PilArgs),
     /// Print the firmware's baked motor table for the parameter file, as Rust source:
     /// `host-sim firmware-table > src/motor_table.rs` after changing the motor's parameters.
     FirmwareTable,
@@ -354,6 +358,60 @@ fn run(cli: Cli) -> Result<()> {
                 }
                 if let Some(path) = &plot_path {
                     println!("plot written to {}", path.display());
+                }
+            }
+        }
+        Command::Pil(args) => {
+            let elf = match &args.elf {
+                Some(path) => path.clone(),
+                None => host_sim::pil::build_target(&mut |what| eprintln!("pil: {what}..."))?,
+            };
+            eprintln!("pil: running the move with the core on the emulated Cortex-M4F...");
+            let r = host_sim::pil::run(&params, &args, &elf)?;
+            if args.json {
+                println!("{}", serde_json::to_string_pretty(&r)?);
+            } else {
+                println!(
+                    "PIL move 0 → {} µm at F0 {} N against {} N: {} periods on the emulated M4",
+                    r.to_um, r.preload_n, r.load_n, r.ticks
+                );
+                match &r.fault {
+                    Some(f) => println!(
+                        "fault: {} (code {}); outputs safe after {} period(s)",
+                        f.text,
+                        f.code,
+                        r.fault_safe_after_ticks.map_or("no".into(), |n| n.to_string())
+                    ),
+                    None => println!(
+                        "settle time {}, final error {:.1} nm, overshoot {:.1} nm",
+                        r.settle_time_s.map_or("never".into(), |t| format!("{t:.4} s")),
+                        r.final_error_nm,
+                        r.overshoot_nm
+                    ),
+                }
+                println!(
+                    "tick (step + refill): mean {:.0}, max {} instructions; step alone: mean {:.0}, max {}",
+                    r.tick_instructions_mean,
+                    r.tick_instructions_max,
+                    r.step_instructions_mean,
+                    r.step_instructions_max
+                );
+                for (state, s) in &r.per_state {
+                    println!(
+                        "  {state:<12} {:>6} ticks, mean {:>6.0}, max {:>6} instructions",
+                        s.ticks, s.tick_instructions_mean, s.tick_instructions_max
+                    );
+                }
+                println!("periods whose outputs differ from the host build: {}", r.sil_mismatch_ticks);
+            }
+            if let Some(b) = &args.budget {
+                let (mean, max) = (b.first().copied().unwrap_or(0), b.get(1).copied().unwrap_or(0));
+                if r.tick_instructions_mean > f64::from(mean) || r.tick_instructions_max > max {
+                    bail!(
+                        "tick over budget: mean {:.0} (budget {mean}), max {} (budget {max}) instructions",
+                        r.tick_instructions_mean,
+                        r.tick_instructions_max
+                    );
                 }
             }
         }

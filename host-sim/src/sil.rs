@@ -169,6 +169,13 @@ impl Sil {
         out
     }
 
+    /// For a controller that runs elsewhere (the emulated M4): `out` takes effect next period,
+    /// the pending one is applied now, exactly as [`Sil::period`] does with its own outputs.
+    pub fn apply_next(&mut self, out: Outputs) {
+        let applied = std::mem::replace(&mut self.pending, out);
+        self.apply(&applied);
+    }
+
     fn apply(&mut self, out: &Outputs) {
         self.plant.set_drive_off(!out.amp_enable);
         let start = self.plant.time_s();

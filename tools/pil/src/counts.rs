@@ -1,77 +1,21 @@
-//! Instruction counts of the control core's hot paths on a Cortex-M4F under QEMU (see
-//! Cargo.toml). Prints mean and largest instructions per call.
-#![no_std]
-#![no_main]
+//! The old `m4-count` suite: instruction counts of the core's hot paths (refill, controller
+//! step idle/moving/holding, model pieces) on the emulated Cortex-M4F. Runs when no PIL host is
+//! attached (`tools/pil/run`).
 
-use core::panic::PanicInfo;
-
-use cortex_m::peripheral::syst::SystClkSource;
-use cortex_m::peripheral::SYST;
-use cortex_m_rt::entry;
-use cortex_m_semihosting::{debug, hprintln};
+use cortex_m_semihosting::hprintln;
 use piezo_drive::controller::{Controller, Inputs, DAC_SAMPLES_PER_STEP};
 use piezo_drive::defaults::controller_config;
 use piezo_drive::generator::QuadratureGenerator;
 use piezo_drive::Fx;
 
-/// SysTick counts of `f`, down-counter with a 24-bit reload.
-fn counts(f: impl FnOnce()) -> u32 {
-    let start = SYST::get_current();
-    f();
-    let end = SYST::get_current();
-    start.wrapping_sub(end) & 0x00FF_FFFF
-}
-
-struct Stat {
-    n: u32,
-    total: u64,
-    max: u32,
-}
-impl Stat {
-    fn new() -> Self {
-        Stat { n: 0, total: 0, max: 0 }
-    }
-    fn add(&mut self, c: u32) {
-        self.n += 1;
-        self.total += u64::from(c);
-        self.max = self.max.max(c);
-    }
-    fn print(&self, name: &str, insn_per_count: f32) {
-        let mean = self.total as f32 / self.n.max(1) as f32 * insn_per_count;
-        let max = self.max as f32 * insn_per_count;
-        hprintln!(
-            "{}: {} calls, mean {} instructions, max {} (±{} per call)",
-            name,
-            self.n,
-            mean as u32,
-            max as u32,
-            insn_per_count as u32
-        );
-    }
-}
+use crate::{calibrate, counts, Stat};
 
 static mut HALF: [u32; 2 * DAC_SAMPLES_PER_STEP] = [0; 2 * DAC_SAMPLES_PER_STEP];
 
-#[entry]
-fn main() -> ! {
-    let mut cp = cortex_m::Peripherals::take().unwrap();
-    cp.SYST.set_clock_source(SystClkSource::Core);
-    cp.SYST.set_reload(0x00FF_FFFF);
-    cp.SYST.clear_current();
-    cp.SYST.enable_counter();
-
-    // Calibration: cortex_m::asm::delay(n) (cortex-m 0.7.10) runs a 2-instruction loop
-    // (`subs`, `bne`) n + 1 times. With `-icount shift=0` this should come out at 40 instructions
-    // per count (1 ns per instruction, SysTick on the 25 MHz system clock).
-    const CAL: u32 = 4_000_000;
-    let cal = counts(|| cortex_m::asm::delay(CAL));
-    let k = 2.0 * (CAL + 1) as f32 / cal as f32;
-    hprintln!(
-        "calibration: {} SysTick counts for {} instructions -> {} instructions per count",
-        cal,
-        2 * (CAL + 1),
-        k
-    );
+/// The old `m4-count` suite: instruction counts of the core's hot paths, one by one.
+pub fn hot_paths() {
+    let k = calibrate();
+    hprintln!("calibration: {} instructions per SysTick count", k);
 
     // The FPU square root (VSQRT through inline asm) on the Cortex-M4F: expect 1.4142135 0.001 0.
     hprintln!(
@@ -200,17 +144,4 @@ fn main() -> ! {
     inverse.print("MotorConstants::voltage_for (inverse model, cold start)", k);
     speed.print("ThrustPoint::speed_at_load_mm_s (false position)", k);
     thrust.print("ThrustPoint::thrust_n (one model evaluation)", k);
-    debug::exit(debug::EXIT_SUCCESS);
-    loop {
-        cortex_m::asm::wfi();
-    }
-}
-
-#[panic_handler]
-fn panic(info: &PanicInfo) -> ! {
-    hprintln!("panic: {}", info);
-    debug::exit(debug::EXIT_FAILURE);
-    loop {
-        cortex_m::asm::wfi();
-    }
 }

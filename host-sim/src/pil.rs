@@ -1,0 +1,411 @@
+//! Processor in the loop: the firmware's control core, built for `thumbv7em-none-eabihf` with the
+//! firmware's release settings (`tools/pil`), runs on QEMU's Cortex-M4F (`mps2-an386`,
+//! `-icount shift=0`) and drives the plant. Each control period the host sends the sensor
+//! inputs (and a command) through a FIFO, the emulated M4 runs `Controller::step` and packs the
+//! DMA half-buffer, and sends back the DAC words, the enable, its state and the instructions the
+//! tick took. The host build of the same core runs beside it on the same inputs: every period
+//! whose outputs differ is counted (`sil_mismatch_ticks`).
+
+use crate::moves::FaultReport;
+use crate::params::Params;
+use crate::plant::ExternalLoad;
+use crate::sil::{controller_config, Sil};
+use anyhow::{anyhow, bail, Context, Result};
+use piezo_drive::controller::{FaultCode, Inputs, Outputs, State};
+use piezo_drive::pil_wire::{self, Command, Reply, Tick, REPLY_BYTES};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Stdio};
+use std::time::Duration;
+
+/// A fault to provoke during the move.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FaultCase {
+    /// The encoder count jumps by 5000 counts (250 µm) 20 ms into the move.
+    EncoderJump,
+    /// The preload falls to 2 N (below the window) 20 ms into the move.
+    PreloadLoss,
+    /// A load of twice the stall force opposes the move from the start.
+    Stall,
+}
+
+#[derive(clap::Args, Debug, Clone)]
+pub struct PilArgs {
+    /// Target position (µm).
+    #[arg(long, allow_negative_numbers = true)]
+    pub to_um: f64,
+    /// Preload force F0 (N).
+    #[arg(long, default_value_t = 16.0, allow_negative_numbers = true)]
+    pub preload_n: f64,
+    /// Constant load opposing the motion (N), as a hanging weight; not told to the controller.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub load_n: f64,
+    /// Provoke a fault during the move and check the drive goes safe on the target.
+    #[arg(long, value_enum)]
+    pub fault: Option<FaultCase>,
+    /// The target program (default: build `tools/pil` of this checkout and use its ELF).
+    #[arg(long, value_name = "ELF")]
+    pub elf: Option<PathBuf>,
+    /// Exit with an error when the tick's instructions exceed these (mean, max).
+    #[arg(long, num_args = 2, value_names = ["MEAN", "MAX"])]
+    pub budget: Option<Vec<u32>>,
+    /// Print one JSON object instead of the summary.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Instruction counts of the ticks spent in one state.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct StateTicks {
+    pub ticks: u64,
+    pub tick_instructions_mean: f64,
+    pub tick_instructions_max: u32,
+    #[serde(skip)]
+    total: u64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct PilResult {
+    pub to_um: f64,
+    pub preload_n: f64,
+    pub load_n: f64,
+    pub settle_time_s: Option<f64>,
+    pub final_error_nm: f64,
+    pub overshoot_nm: f64,
+    pub fault: Option<FaultReport>,
+    /// With `--fault`: periods from the fault until the target's outputs were safe (enable off,
+    /// both DAC words within 1 LSB of mid-range at the end of the period); 1 = the very period
+    /// in which the fault was seen.
+    pub fault_safe_after_ticks: Option<u64>,
+    pub ticks: u64,
+    /// The whole tick on the M4: `Controller::step` plus packing 20 sample pairs into the DMA
+    /// half-buffer.
+    pub tick_instructions_mean: f64,
+    pub tick_instructions_max: u32,
+    /// `Controller::step` alone.
+    pub step_instructions_mean: f64,
+    pub step_instructions_max: u32,
+    /// Per state the tick ran in (the state before its step).
+    pub per_state: BTreeMap<&'static str, StateTicks>,
+    /// Periods whose outputs (DAC words, enable) differ between the M4 and the host build.
+    pub sil_mismatch_ticks: u64,
+    /// The first such period (counted from the start of the run), if any.
+    pub sil_first_mismatch_tick: Option<u64>,
+    /// Largest difference of a DAC word between the two builds (LSB).
+    pub sil_max_dac_difference_lsb: u16,
+    /// Periods in which the amplifier enable differs between the two builds.
+    pub sil_enable_mismatch_ticks: u64,
+}
+
+/// Builds `tools/pil` for the target and returns its ELF.
+pub fn build_target(progress: &mut dyn FnMut(&str)) -> Result<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tools/pil");
+    progress("building the core for thumbv7em-none-eabihf (tools/pil, firmware release settings)");
+    let status = std::process::Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
+        .args(["build", "--release", "--quiet"])
+        .current_dir(&dir)
+        // The program links with cortex-m-rt's link.x only (no defmt).
+        .env("RUSTFLAGS", "-C link-arg=-Tlink.x")
+        .env_remove("CARGO_TARGET_DIR")
+        .status()
+        .with_context(|| format!("cannot run cargo in {}", dir.display()))?;
+    if !status.success() {
+        bail!("building {} failed (is the thumbv7em-none-eabihf target installed?)", dir.display());
+    }
+    Ok(dir.join("target/thumbv7em-none-eabihf/release/pil"))
+}
+
+/// The emulated M4 and the two FIFOs to it.
+struct Target {
+    qemu: Child,
+    to_target: std::fs::File,
+    from_target: std::fs::File,
+    dir: PathBuf,
+}
+
+impl Drop for Target {
+    fn drop(&mut self) {
+        let _ = self.qemu.kill();
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+impl Target {
+    fn start(elf: &Path) -> Result<Self> {
+        if !elf.is_file() {
+            bail!("no target program at {}", elf.display());
+        }
+        let dir = std::env::temp_dir().join(format!("host-sim-pil-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).with_context(|| format!("cannot make {}", dir.display()))?;
+        for name in ["pil-in", "pil-out"] {
+            let path = dir.join(name);
+            let _ = std::fs::remove_file(&path);
+            let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes())?;
+            // SAFETY: a valid NUL-terminated path; mkfifo touches nothing else.
+            if unsafe { libc::mkfifo(c.as_ptr(), 0o600) } != 0 {
+                bail!("mkfifo {} failed: {}", path.display(), std::io::Error::last_os_error());
+            }
+        }
+        let mut qemu = std::process::Command::new("qemu-system-arm")
+            .args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-icount", "shift=0", "-nographic"])
+            .args(["-monitor", "none", "-serial", "none"])
+            .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
+            .arg(elf)
+            .current_dir(&dir)
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .context("cannot start qemu-system-arm (apt-get install qemu-system-arm)")?;
+        // Opening a FIFO blocks until the other end opens: do it on a thread, with a deadline.
+        let (tx, rx) = std::sync::mpsc::channel();
+        let (pin, pout) = (dir.join("pil-in"), dir.join("pil-out"));
+        std::thread::spawn(move || {
+            let files = std::fs::OpenOptions::new()
+                .write(true)
+                .open(&pin)
+                .and_then(|w| std::fs::File::open(&pout).map(|r| (w, r)));
+            let _ = tx.send(files);
+        });
+        let (to_target, from_target) = match rx.recv_timeout(Duration::from_secs(30)) {
+            Ok(files) => files.context("opening the FIFOs to the emulated M4")?,
+            Err(_) => {
+                let _ = qemu.kill();
+                let _ = std::fs::remove_dir_all(&dir);
+                let mut out = String::new();
+                if let Some(mut s) = qemu.stdout.take() {
+                    let _ = s.read_to_string(&mut out);
+                }
+                bail!("the emulated M4 did not open its FIFOs within 30 s: {}", out.trim());
+            }
+        };
+        Ok(Target { qemu, to_target, from_target, dir })
+    }
+
+    fn tick(&mut self, tick: &Tick) -> Result<Reply> {
+        self.to_target.write_all(&pil_wire::encode_tick(tick)).context("writing to the emulated M4")?;
+        let mut buf = [0u8; REPLY_BYTES];
+        self.from_target.read_exact(&mut buf).map_err(|e| {
+            let mut out = String::new();
+            if let Some(mut s) = self.qemu.stdout.take() {
+                let _ = s.read_to_string(&mut out);
+            }
+            anyhow!("the emulated M4 stopped answering ({e}): {}", out.trim())
+        })?;
+        Ok(pil_wire::decode_reply(&buf))
+    }
+
+    fn finish(mut self) {
+        // The exit frame gets no reply: the target leaves QEMU.
+        let _ = self
+            .to_target
+            .write_all(&pil_wire::encode_tick(&Tick { command: Command::Exit, inputs: Inputs::default() }));
+        let _ = self.qemu.wait_timeout_or_kill(Duration::from_secs(5));
+    }
+}
+
+trait WaitTimeout {
+    fn wait_timeout_or_kill(&mut self, limit: Duration) -> std::io::Result<()>;
+}
+
+impl WaitTimeout for Child {
+    fn wait_timeout_or_kill(&mut self, limit: Duration) -> std::io::Result<()> {
+        let start = std::time::Instant::now();
+        while start.elapsed() < limit {
+            if self.try_wait()?.is_some() {
+                return Ok(());
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        self.kill()
+    }
+}
+
+/// The safe state of the outputs: enable off and, by the end of the period, both words within
+/// 1 LSB of mid-range (the words may ramp there within the period, as in the SIL tests).
+fn is_safe(out: &Outputs, mid: u16) -> bool {
+    let last = out.dac.last().copied().unwrap_or([mid; 2]);
+    !out.amp_enable && last.iter().all(|&w| (i32::from(w) - i32::from(mid)).abs() <= 1)
+}
+
+/// One closed-loop move with the control code on the emulated M4.
+pub fn run(p: &Params, args: &PilArgs, elf: &Path) -> Result<PilResult> {
+    if !args.to_um.is_finite() || args.to_um.abs() > 50_000.0 {
+        bail!("--to-um must be a position within ±50000 µm, got {}", args.to_um);
+    }
+    if !(args.preload_n.is_finite() && args.preload_n > 0.0 && args.preload_n <= 60.0) {
+        bail!("--preload-n must be in (0, 60] N, got {}", args.preload_n);
+    }
+    if !(args.load_n.is_finite() && args.load_n.abs() <= 20.0) {
+        bail!("--load-n must be within ±20 N, got {}", args.load_n);
+    }
+    // The target boots with the firmware's defaults: the plant must be the motor they describe.
+    let cfg = controller_config(p);
+    if cfg != piezo_drive::defaults::controller_config() {
+        bail!("the parameter file does not describe the motor the firmware's defaults were baked for (PIL runs the firmware's own defaults; regenerate src/motor_table.rs for it first)");
+    }
+    let mid = ((p.amplifier_mid_v() / p.amplifier.output_max_v) * 4095.0).round() as u16;
+    let mut sil = Sil::new(p, cfg, args.preload_n, 7)?;
+    let to_nm = (args.to_um * 1e3).round() as i64;
+    let dir = if to_nm >= 0 { 1 } else { -1 };
+    let mut load_n = args.load_n;
+    if args.fault == Some(FaultCase::Stall) {
+        let stall = crate::steady::ThrustModel::new(
+            p,
+            crate::steady::OperatingPoint {
+                preload_n: args.preload_n,
+                voltage_v: 100.0,
+                frequency_hz: 2200.0,
+            },
+        )
+        .stall_force_n();
+        load_n = 2.0 * stall;
+    }
+    let mut target = Target::start(elf)?;
+    let mut result = PilResult {
+        to_um: args.to_um,
+        preload_n: args.preload_n,
+        load_n,
+        settle_time_s: None,
+        final_error_nm: f64::NAN,
+        overshoot_nm: 0.0,
+        fault: None,
+        fault_safe_after_ticks: None,
+        ticks: 0,
+        tick_instructions_mean: 0.0,
+        tick_instructions_max: 0,
+        step_instructions_mean: 0.0,
+        step_instructions_max: 0,
+        per_state: BTreeMap::new(),
+        sil_mismatch_ticks: 0,
+        sil_first_mismatch_tick: None,
+        sil_max_dac_difference_lsb: 0,
+        sil_enable_mismatch_ticks: 0,
+    };
+    let (mut tick_total, mut step_total) = (0u64, 0u64);
+    let mut state_before = pil_wire::state_code(State::Idle);
+    // One period on both builds: the command first, then the step on the same inputs.
+    let mut period = |sil: &mut Sil, command: Command, result: &mut PilResult| -> Result<Reply> {
+        let inputs = sil.inputs();
+        let reply = target.tick(&Tick { command, inputs })?;
+        let host_refused = match command {
+            Command::Servo(on) => sil.controller.set_servo(on).is_err(),
+            Command::MoveTo(nm) => sil.controller.move_to(nm).is_err(),
+            Command::ClearFault => {
+                sil.controller.clear_fault();
+                false
+            }
+            Command::None | Command::Exit => false,
+        };
+        let host_out = sil.controller.step(&inputs);
+        if host_out != reply.outputs || host_refused != reply.command_refused {
+            result.sil_mismatch_ticks += 1;
+            result.sil_first_mismatch_tick.get_or_insert(result.ticks);
+            let worst = host_out
+                .dac
+                .iter()
+                .flatten()
+                .zip(reply.outputs.dac.iter().flatten())
+                .map(|(a, b)| a.abs_diff(*b))
+                .max()
+                .unwrap_or(0);
+            result.sil_max_dac_difference_lsb = result.sil_max_dac_difference_lsb.max(worst);
+            if host_out.amp_enable != reply.outputs.amp_enable {
+                result.sil_enable_mismatch_ticks += 1;
+            }
+        }
+        sil.apply_next(reply.outputs);
+        result.ticks += 1;
+        tick_total += u64::from(reply.tick_instructions);
+        step_total += u64::from(reply.step_instructions);
+        result.tick_instructions_max = result.tick_instructions_max.max(reply.tick_instructions);
+        result.step_instructions_max = result.step_instructions_max.max(reply.step_instructions);
+        let s = result.per_state.entry(pil_wire::state_name(state_before)).or_default();
+        s.ticks += 1;
+        s.total += u64::from(reply.tick_instructions);
+        s.tick_instructions_max = s.tick_instructions_max.max(reply.tick_instructions);
+        state_before = reply.state;
+        Ok(reply)
+    };
+    // Ready the board as `move` does: let the force-cell filter settle, then servo on.
+    let t_ready = sil.time_s() + 0.05;
+    while sil.time_s() < t_ready {
+        period(&mut sil, Command::None, &mut result)?;
+    }
+    if period(&mut sil, Command::Servo(true), &mut result)?.command_refused {
+        bail!("servo on refused by the target (preload {} N outside the window?)", args.preload_n);
+    }
+    sil.set_load(ExternalLoad::opposing(load_n, dir));
+    let count_nm = p.sensors.encoder_resolution_m * 1e9;
+    let t0 = sil.time_s();
+    let max_s = 2.0 + 5.0 * args.to_um.abs() * 1e-6 / 2.0e-3;
+    let hold_s = 0.05;
+    let mut inside_since: Option<f64> = None;
+    let mut command = Command::MoveTo(to_nm);
+    let mut fault_at: Option<u64> = None;
+    let mut injected = false;
+    while sil.time_s() - t0 < max_s {
+        let t = sil.time_s() - t0;
+        if !injected && t >= 0.02 {
+            match args.fault {
+                Some(FaultCase::EncoderJump) => sil.encoder_offset_counts += 5_000,
+                Some(FaultCase::PreloadLoss) => sil.plant.set_preload_n(2.0),
+                _ => {}
+            }
+            injected = true;
+        }
+        let reply = period(&mut sil, command, &mut result)?;
+        if command != Command::None && reply.command_refused {
+            bail!("the target refused the move to {} µm", args.to_um);
+        }
+        command = Command::None;
+        let pos = sil.plant.slider_position_m() * 1e9;
+        let err = pos - to_nm as f64;
+        result.overshoot_nm = result.overshoot_nm.max(f64::from(dir) * err);
+        result.final_error_nm = err;
+        if reply.state & 0x80 != 0 {
+            let n = fault_at.get_or_insert(result.ticks);
+            if result.fault_safe_after_ticks.is_none() && is_safe(&reply.outputs, mid) {
+                result.fault_safe_after_ticks = Some(result.ticks - *n + 1);
+            }
+            if result.fault.is_none() {
+                let code = reply.state & 0x7f;
+                let text = [
+                    FaultCode::FollowingError,
+                    FaultCode::Stall,
+                    FaultCode::PreloadOutOfWindow,
+                    FaultCode::PreloadSensor,
+                    FaultCode::EncoderJump,
+                ]
+                .into_iter()
+                .find(|c| *c as u8 == code)
+                .map_or("unknown fault", |c| c.text());
+                result.fault = Some(FaultReport { code, text });
+            }
+            // A few periods more to see the outputs settle into the safe state.
+            if result.ticks - *n >= 3 {
+                break;
+            }
+            continue;
+        }
+        if err.abs() <= count_nm {
+            let since = *inside_since.get_or_insert(t);
+            if t - since >= hold_s {
+                result.settle_time_s = Some(since);
+                break;
+            }
+        } else {
+            inside_since = None;
+        }
+    }
+    target.finish();
+    let n = result.ticks.max(1) as f64;
+    result.tick_instructions_mean = tick_total as f64 / n;
+    result.step_instructions_mean = step_total as f64 / n;
+    for s in result.per_state.values_mut() {
+        s.tick_instructions_mean = s.total as f64 / s.ticks.max(1) as f64;
+    }
+    Ok(result)
+}

@@ -1,0 +1,148 @@
+//! Processor-in-the-loop wire format: one fixed-size frame each way per control period between
+//! `host-sim pil` (the plant) and `tools/pil` (this core on an emulated Cortex-M4F). Both sides
+//! encode and decode with these functions, so they cannot disagree on the layout. Little-endian.
+
+use crate::controller::{Inputs, Outputs, State, DAC_SAMPLES_PER_STEP};
+
+/// Host → target: a command for this period (applied before the step) and the sensor inputs.
+pub const TICK_BYTES: usize = 16;
+/// Target → host: the outputs, the controller's state, the command's result, instruction counts.
+pub const REPLY_BYTES: usize = 4 * DAC_SAMPLES_PER_STEP + 16;
+
+/// What the host asks of the controller before this period's step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Command {
+    None,
+    Servo(bool),
+    MoveTo(i64),
+    ClearFault,
+    /// End of the run: the target exits.
+    Exit,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Tick {
+    pub command: Command,
+    pub inputs: Inputs,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Reply {
+    pub outputs: Outputs,
+    /// [`state_code`] of the state after the step.
+    pub state: u8,
+    /// 0 = command accepted (or none), 1 = refused.
+    pub command_refused: bool,
+    /// Instructions of the whole tick (step + packing the DMA half-buffer) and of the step alone.
+    pub tick_instructions: u32,
+    pub step_instructions: u32,
+}
+
+/// One byte per state: 0 idle, 1 moving, 2 holding, 3 referencing, 4 open loop, 0x80 + fault code.
+pub fn state_code(s: State) -> u8 {
+    match s {
+        State::Idle => 0,
+        State::Moving => 1,
+        State::Holding => 2,
+        State::Referencing => 3,
+        State::OpenLoop => 4,
+        State::Fault(code) => 0x80 | code as u8,
+    }
+}
+
+/// Name of a [`state_code`] for reports.
+pub fn state_name(code: u8) -> &'static str {
+    match code {
+        0 => "idle",
+        1 => "moving",
+        2 => "holding",
+        3 => "referencing",
+        4 => "open_loop",
+        c if c & 0x80 != 0 => "fault",
+        _ => "unknown",
+    }
+}
+
+fn put(buf: &mut [u8], at: usize, bytes: &[u8]) {
+    if let Some(dst) = buf.get_mut(at..at + bytes.len()) {
+        dst.copy_from_slice(bytes);
+    }
+}
+
+fn get<const N: usize>(buf: &[u8], at: usize) -> [u8; N] {
+    let mut out = [0u8; N];
+    if let Some(src) = buf.get(at..at + N) {
+        out.copy_from_slice(src);
+    }
+    out
+}
+
+pub fn encode_tick(t: &Tick) -> [u8; TICK_BYTES] {
+    let mut b = [0u8; TICK_BYTES];
+    let (cmd, arg): (u8, i64) = match t.command {
+        Command::None => (0, 0),
+        Command::Servo(on) => (1, i64::from(on)),
+        Command::MoveTo(nm) => (2, nm),
+        Command::ClearFault => (3, 0),
+        Command::Exit => (255, 0),
+    };
+    let flags = u8::from(t.inputs.index)
+        | (u8::from(t.inputs.negative_limit) << 1)
+        | (u8::from(t.inputs.positive_limit) << 2);
+    put(&mut b, 0, &[cmd, flags]);
+    put(&mut b, 2, &t.inputs.encoder_raw.to_le_bytes());
+    put(&mut b, 4, &t.inputs.preload_word.to_le_bytes());
+    put(&mut b, 8, &arg.to_le_bytes());
+    b
+}
+
+/// `None` for an unknown command byte.
+pub fn decode_tick(b: &[u8; TICK_BYTES]) -> Option<Tick> {
+    let [cmd, flags] = get::<2>(b, 0);
+    let arg = i64::from_le_bytes(get::<8>(b, 8));
+    let command = match cmd {
+        0 => Command::None,
+        1 => Command::Servo(arg != 0),
+        2 => Command::MoveTo(arg),
+        3 => Command::ClearFault,
+        255 => Command::Exit,
+        _ => return None,
+    };
+    let inputs = Inputs {
+        encoder_raw: u16::from_le_bytes(get::<2>(b, 2)),
+        preload_word: u16::from_le_bytes(get::<2>(b, 4)),
+        index: flags & 1 != 0,
+        negative_limit: flags & 2 != 0,
+        positive_limit: flags & 4 != 0,
+    };
+    Some(Tick { command, inputs })
+}
+
+pub fn encode_reply(r: &Reply) -> [u8; REPLY_BYTES] {
+    let mut b = [0u8; REPLY_BYTES];
+    for (i, [a, c]) in r.outputs.dac.iter().enumerate() {
+        put(&mut b, 4 * i, &a.to_le_bytes());
+        put(&mut b, 4 * i + 2, &c.to_le_bytes());
+    }
+    let at = 4 * DAC_SAMPLES_PER_STEP;
+    put(&mut b, at, &[u8::from(r.outputs.amp_enable), r.state, u8::from(r.command_refused), 0]);
+    put(&mut b, at + 4, &r.tick_instructions.to_le_bytes());
+    put(&mut b, at + 8, &r.step_instructions.to_le_bytes());
+    b
+}
+
+pub fn decode_reply(b: &[u8; REPLY_BYTES]) -> Reply {
+    let mut dac = [[0u16; 2]; DAC_SAMPLES_PER_STEP];
+    for (i, pair) in dac.iter_mut().enumerate() {
+        *pair = [u16::from_le_bytes(get::<2>(b, 4 * i)), u16::from_le_bytes(get::<2>(b, 4 * i + 2))];
+    }
+    let at = 4 * DAC_SAMPLES_PER_STEP;
+    let [enable, state, refused, _] = get::<4>(b, at);
+    Reply {
+        outputs: Outputs { dac, amp_enable: enable != 0 },
+        state,
+        command_refused: refused != 0,
+        tick_instructions: u32::from_le_bytes(get::<4>(b, at + 4)),
+        step_instructions: u32::from_le_bytes(get::<4>(b, at + 8)),
+    }
+}

@@ -1,0 +1,181 @@
+//! The control core on an emulated Cortex-M4F (QEMU `mps2-an386`, `-icount shift=0`: one
+//! instruction = 1 ns of virtual time, read through SysTick). Built from the same sources as the
+//! firmware's core (the lib in Cargo.toml IS src/lib.rs), with the firmware's release settings.
+//!
+//! Two jobs, one program:
+//! - **Processor in the loop**: when QEMU runs in a directory holding the FIFOs `pil-in` and
+//!   `pil-out` (made by `host-sim pil`), each control period reads one tick frame (command and
+//!   sensor inputs, `piezo_drive::pil_wire`), runs `Controller::step` and packs the 20 DAC sample
+//!   pairs into a DMA half-buffer as the firmware's tick does, and writes back the outputs, the
+//!   state and the instructions the tick took.
+//! - **Hot-path counts** (no FIFOs, `tools/pil/run`): the old `m4-count` suite.
+#![no_std]
+#![no_main]
+
+mod counts;
+
+use core::panic::PanicInfo;
+
+use cortex_m::peripheral::syst::SystClkSource;
+use cortex_m::peripheral::SYST;
+use cortex_m_rt::entry;
+use cortex_m_semihosting::{debug, hprintln, syscall};
+use piezo_drive::controller::{Controller, DAC_SAMPLES_PER_STEP};
+use piezo_drive::defaults::controller_config;
+use piezo_drive::pil_wire::{self, Command, Reply, REPLY_BYTES, TICK_BYTES};
+
+/// SysTick counts of `f`, down-counter with a 24-bit reload.
+pub fn counts(f: impl FnOnce()) -> u32 {
+    let start = SYST::get_current();
+    f();
+    let end = SYST::get_current();
+    start.wrapping_sub(end) & 0x00FF_FFFF
+}
+
+/// Instructions per SysTick count. `cortex_m::asm::delay(n)` (cortex-m 0.7.10) runs a
+/// 2-instruction loop (`subs`, `bne`) n + 1 times; with `-icount shift=0` this comes out at 40
+/// (1 ns per instruction, SysTick on the 25 MHz system clock).
+pub fn calibrate() -> f32 {
+    const CAL: u32 = 4_000_000;
+    let cal = counts(|| cortex_m::asm::delay(CAL));
+    2.0 * (CAL + 1) as f32 / cal.max(1) as f32
+}
+
+pub struct Stat {
+    n: u32,
+    total: u64,
+    max: u32,
+}
+impl Stat {
+    pub fn new() -> Self {
+        Stat { n: 0, total: 0, max: 0 }
+    }
+    pub fn add(&mut self, c: u32) {
+        self.n += 1;
+        self.total += u64::from(c);
+        self.max = self.max.max(c);
+    }
+    pub fn print(&self, name: &str, insn_per_count: f32) {
+        let mean = self.total as f32 / self.n.max(1) as f32 * insn_per_count;
+        let max = self.max as f32 * insn_per_count;
+        hprintln!(
+            "{}: {} calls, mean {} instructions, max {} (±{} per call)",
+            name,
+            self.n,
+            mean as u32,
+            max as u32,
+            insn_per_count as u32
+        );
+    }
+}
+
+/// Semihosting file handle, or None.
+fn open(name: &[u8], mode: usize) -> Option<usize> {
+    // SYS_OPEN takes a NUL-terminated name and its length without the NUL.
+    let fd = unsafe { syscall!(OPEN, name.as_ptr(), mode, name.len() - 1) } as isize;
+    (fd >= 0).then_some(fd as usize)
+}
+
+/// Reads exactly `buf.len()` bytes; false at end of file.
+fn read_exact(fd: usize, buf: &mut [u8]) -> bool {
+    let mut done = 0;
+    while done < buf.len() {
+        let rest = &mut buf[done..];
+        // SYS_READ returns the number of bytes NOT read.
+        let left = unsafe { syscall!(READ, fd, rest.as_mut_ptr(), rest.len()) };
+        let got = rest.len().saturating_sub(left);
+        if got == 0 {
+            return false;
+        }
+        done += got;
+    }
+    true
+}
+
+fn write_all(fd: usize, buf: &[u8]) -> bool {
+    unsafe { syscall!(WRITE, fd, buf.as_ptr(), buf.len()) == 0 }
+}
+
+/// The DMA half-buffer the tick refills: DHR12RD words, channel 2 in the upper half.
+static mut HALF: [u32; 2 * DAC_SAMPLES_PER_STEP] = [0; 2 * DAC_SAMPLES_PER_STEP];
+
+fn pil(fd_in: usize, fd_out: usize, k: f32) {
+    let Ok(mut ctl) = Controller::new(controller_config()) else {
+        hprintln!("pil: the firmware's default configuration is refused");
+        return;
+    };
+    let mut frame = [0u8; TICK_BYTES];
+    let mut half = 0usize;
+    while read_exact(fd_in, &mut frame) {
+        let Some(tick) = pil_wire::decode_tick(&frame) else {
+            hprintln!("pil: bad frame");
+            return;
+        };
+        let refused = match tick.command {
+            Command::None => false,
+            Command::Servo(on) => ctl.set_servo(on).is_err(),
+            Command::MoveTo(nm) => ctl.move_to(nm).is_err(),
+            Command::ClearFault => {
+                ctl.clear_fault();
+                false
+            }
+            Command::Exit => return,
+        };
+        let mut out = None;
+        let mut step_counts = 0;
+        let tick_counts = counts(|| {
+            step_counts = counts(|| out = Some(ctl.step(core::hint::black_box(&tick.inputs))));
+            if let Some(o) = &out {
+                for (j, s) in o.dac.iter().enumerate() {
+                    let w = u32::from(s[0].min(4095)) | (u32::from(s[1].min(4095)) << 16);
+                    // SAFETY: in bounds, single-threaded.
+                    unsafe { core::ptr::addr_of_mut!(HALF).cast::<u32>().add(half + j).write_volatile(w) };
+                }
+            }
+        });
+        half = DAC_SAMPLES_PER_STEP - half;
+        let Some(outputs) = out else { return };
+        let reply = Reply {
+            outputs,
+            state: pil_wire::state_code(ctl.state()),
+            command_refused: refused,
+            tick_instructions: (tick_counts as f32 * k) as u32,
+            step_instructions: (step_counts as f32 * k) as u32,
+        };
+        let bytes: [u8; REPLY_BYTES] = pil_wire::encode_reply(&reply);
+        if !write_all(fd_out, &bytes) {
+            return;
+        }
+    }
+}
+
+#[entry]
+fn main() -> ! {
+    let mut cp = cortex_m::Peripherals::take().unwrap();
+    cp.SYST.set_clock_source(SystClkSource::Core);
+    cp.SYST.set_reload(0x00FF_FFFF);
+    cp.SYST.clear_current();
+    cp.SYST.enable_counter();
+    let k = calibrate();
+    // Mode 1 = "rb", 5 = "wb" (binary). The host opens its ends in the same order.
+    match open(b"pil-in\0", 1) {
+        Some(fd_in) => match open(b"pil-out\0", 5) {
+            Some(fd_out) => pil(fd_in, fd_out, k),
+            None => hprintln!("pil: cannot open pil-out"),
+        },
+        None => counts::hot_paths(),
+    }
+    debug::exit(debug::EXIT_SUCCESS);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[panic_handler]
+fn panic(info: &PanicInfo) -> ! {
+    hprintln!("panic: {}", info);
+    debug::exit(debug::EXIT_FAILURE);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
