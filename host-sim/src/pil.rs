@@ -137,6 +137,8 @@ impl Target {
         if !elf.is_file() {
             bail!("no target program at {}", elf.display());
         }
+        // QEMU runs in the FIFOs' directory: give it an absolute path.
+        let elf = elf.canonicalize().with_context(|| format!("cannot resolve {}", elf.display()))?;
         let dir = std::env::temp_dir().join(format!("host-sim-pil-{}", std::process::id()));
         std::fs::create_dir_all(&dir).with_context(|| format!("cannot make {}", dir.display()))?;
         for name in ["pil-in", "pil-out"] {
@@ -152,7 +154,7 @@ impl Target {
             .args(["-machine", "mps2-an386", "-cpu", "cortex-m4", "-icount", "shift=0", "-nographic"])
             .args(["-monitor", "none", "-serial", "none"])
             .args(["-semihosting-config", "enable=on,target=native", "-kernel"])
-            .arg(elf)
+            .arg(&elf)
             .current_dir(&dir)
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
@@ -169,16 +171,36 @@ impl Target {
                 .and_then(|w| std::fs::File::open(&pout).map(|r| (w, r)));
             let _ = tx.send(files);
         });
-        let (to_target, from_target) = match rx.recv_timeout(Duration::from_secs(30)) {
-            Ok(files) => files.context("opening the FIFOs to the emulated M4")?,
-            Err(_) => {
+        // Wait for the target to open its ends; give up early if QEMU exits.
+        let deadline = std::time::Instant::now() + Duration::from_secs(30);
+        let opened = loop {
+            match rx.recv_timeout(Duration::from_millis(100)) {
+                Ok(files) => break Some(files),
+                Err(_) if std::time::Instant::now() >= deadline => break None,
+                Err(_) => {
+                    if qemu.try_wait().ok().flatten().is_some() {
+                        break None;
+                    }
+                }
+            }
+        };
+        let (to_target, from_target) = match opened {
+            Some(files) => files.context("opening the FIFOs to the emulated M4")?,
+            None => {
                 let _ = qemu.kill();
                 let _ = std::fs::remove_dir_all(&dir);
                 let mut out = String::new();
-                if let Some(mut s) = qemu.stdout.take() {
+                for stream in [
+                    qemu.stdout.take().map(|s| Box::new(s) as Box<dyn Read>),
+                    qemu.stderr.take().map(|s| Box::new(s) as Box<dyn Read>),
+                ]
+                .into_iter()
+                .flatten()
+                {
+                    let mut s = stream;
                     let _ = s.read_to_string(&mut out);
                 }
-                bail!("the emulated M4 did not open its FIFOs within 30 s: {}", out.trim());
+                bail!("the emulated M4 did not open its FIFOs: {}", out.trim().replace('\n', "; "));
             }
         };
         Ok(Target { qemu, to_target, from_target, dir })
