@@ -23,6 +23,16 @@ fn plant(c: &mut Criterion) {
         plant.run(&mut drive, 0.02);
         b.iter(|| plant.run(&mut drive, sim_s));
     });
+    // The paper's stator with physical masses and a 0.3 kg carriage on the sheared friction
+    // layer (params/paper-masses.toml): more contact switches per period.
+    let paper = Params::from_toml(include_str!("../params/paper-masses.toml")).expect("valid file");
+    g.bench_function("run_10ms_paper_masses", |b| {
+        let mut plant = Plant::new(&paper, 16.0);
+        let mut drive =
+            QuadratureSine { voltage_v: 100.0, frequency_hz: 1500.0, direction: 1, mid_v: 50.0, ramp_s: 0.0 };
+        plant.run(&mut drive, 0.02);
+        b.iter(|| plant.run(&mut drive, sim_s));
+    });
     g.finish();
 }
 
@@ -49,6 +59,14 @@ fn steady(c: &mut Criterion) {
     g.bench_function("stall_and_no_load", |b| {
         b.iter(|| black_box((m.stall_force_n(), m.no_load_speed_m_s())))
     });
+    // The model with a 0.3 kg slider's inertia: one periodic orbit (bisection on the start speed).
+    let mut light = p.clone();
+    light.slider.mass_kg = 0.3;
+    let im = host_sim::steady_inertia::InertialModel::new(
+        &light,
+        OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 },
+    );
+    g.bench_function("inertia_no_load_orbit", |b| b.iter(|| black_box(im.orbit(black_box(0.0)))));
     g.finish();
 }
 
