@@ -45,3 +45,36 @@ fn hw_sqrt(x: f32) -> f32 {
     }
     r
 }
+
+/// `x` limited to `lo..=hi`, as `f32::clamp` for ordered bounds, but never panics: `f32::clamp`
+/// asserts `lo <= hi` and that neither bound is NaN, which links a panic path into every caller
+/// (the control tick included). Here a NaN bound is ignored (the comparison is false) and
+/// `lo > hi` gives `lo` below `lo`, `hi` above `hi`. A NaN `x` stays NaN, as with `f32::clamp`.
+#[inline]
+pub fn clamp_f32(x: f32, lo: f32, hi: f32) -> f32 {
+    if x < lo {
+        lo
+    } else if x > hi {
+        hi
+    } else {
+        x
+    }
+}
+
+/// `x` limited to `-lim..=lim` without a panic path (see [`clamp_f32`]).
+#[inline]
+pub fn clamp_sym_f32(x: f32, lim: f32) -> f32 {
+    clamp_f32(x, -lim, lim)
+}
+
+/// `Ord::clamp` for i32 without its `lo <= hi` assertion.
+#[inline]
+pub fn clamp_i32(x: i32, lo: i32, hi: i32) -> i32 {
+    if x < lo {
+        lo
+    } else if x > hi {
+        hi
+    } else {
+        x
+    }
+}

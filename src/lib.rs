@@ -20,6 +20,7 @@ pub mod generator;
 pub mod model;
 pub mod motor_table;
 pub mod profile;
+pub mod safety;
 pub mod sensors;
 pub mod storage;
 pub mod trig;
