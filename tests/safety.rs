@@ -533,3 +533,52 @@ fn clamps_never_panic_and_match_std_for_ordered_bounds() {
     assert_eq!(clamp_i32(3, 5, 0), 5);
     assert_eq!(clamp_i32(-3, -1, 1), -1);
 }
+
+#[test]
+fn fx_from_f32_matches_fixed_without_its_nan_panic() {
+    use piezo_drive::fastmath::fx_from_f32;
+    use piezo_drive::Fx;
+    let edge = [
+        0.0f32,
+        -0.0,
+        1.0,
+        -1.0,
+        0.5 / 65536.0,
+        1.5 / 65536.0,
+        2.5 / 65536.0,
+        -0.5 / 65536.0,
+        -1.5 / 65536.0,
+        127.99998,
+        32767.99998,
+        32768.0,
+        -32768.0,
+        -32769.0,
+        1e9,
+        -1e9,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        f32::MIN_POSITIVE,
+        1e-40,
+        3.14159,
+        -2.71828,
+        128.0 + 0.5 / 65536.0,
+        16.0,
+        50.0,
+    ];
+    for x in edge {
+        assert_eq!(fx_from_f32(x), Fx::saturating_from_num(x), "{x:e}");
+    }
+    // Every bit pattern step through the whole f32 range (NaNs excluded).
+    let mut bits: u32 = 0;
+    loop {
+        let x = f32::from_bits(bits);
+        if !x.is_nan() {
+            assert_eq!(fx_from_f32(x), Fx::saturating_from_num(x), "{x:e} ({bits:08x})");
+        }
+        match bits.checked_add(4_099) {
+            Some(b) => bits = b,
+            None => break,
+        }
+    }
+    assert_eq!(fx_from_f32(f32::NAN), Fx::ZERO);
+}

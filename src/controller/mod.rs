@@ -8,12 +8,11 @@
 //! and moves it by a fraction of its stroke. Supervision puts the drive in a safe state on any
 //! fault; only [`Controller::clear_fault`] leaves it.
 
-use crate::fastmath::clamp_sym_f32;
+use crate::fastmath::{clamp_sym_f32, fx_from_f32};
 use crate::generator::QuadratureGenerator;
 use crate::model::{PerVolt, ThrustPoint};
 use crate::profile::Profile;
 use crate::sensors::{Encoder, PreloadCell};
-use crate::Fx;
 
 mod config;
 pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
@@ -166,7 +165,7 @@ const PRELOAD_RESOLVE_N: f32 = 0.02;
 impl ModelCache {
     fn new(cfg: &ControllerConfig) -> Self {
         ModelCache {
-            per_volt: cfg.motor.at_frequency(Fx::saturating_from_num(cfg.drive_freq_hz / 1000.0)),
+            per_volt: cfg.motor.at_frequency(fx_from_f32(cfg.drive_freq_hz / 1000.0)),
             full: None,
             preload_n: 0.0,
             stall_n: 0.0,
@@ -391,7 +390,7 @@ impl Controller {
     /// Fixed-point model at the measured preload and the given drive.
     fn model_point(&self, volts: f32) -> Option<ThrustPoint> {
         let preload = self.preload_n()?;
-        Some(self.model.per_volt.point(Fx::saturating_from_num(preload), Fx::saturating_from_num(volts)))
+        Some(self.model.per_volt.point(fx_from_f32(preload), fx_from_f32(volts)))
     }
 
     /// Stall force (N) and no-load speed (mm/s) at full drive and the measured preload.
@@ -423,9 +422,7 @@ impl Controller {
         m.tick = m.tick.wrapping_add(1);
         let fresh = m.full.is_none();
         if fresh || (preload - m.preload_n).abs() > PRELOAD_RESOLVE_N {
-            let p = m
-                .per_volt
-                .point(Fx::saturating_from_num(preload), Fx::saturating_from_num(self.cfg.max_drive_v));
+            let p = m.per_volt.point(fx_from_f32(preload), fx_from_f32(self.cfg.max_drive_v));
             m.full = Some(p);
             m.preload_n = preload;
             m.stall_n = p.stall_force_n().to_num();
@@ -451,7 +448,7 @@ impl Controller {
                 let never = m.speed_limit_load_n.is_nan();
                 if never || (load - m.speed_limit_load_n).abs() > LOAD_RESOLVE_N {
                     let hint = if never { f32::NAN } else { m.speed_limit_mm_s };
-                    m.speed_limit_mm_s = p.speed_at_load_near(Fx::saturating_from_num(load), hint).to_num();
+                    m.speed_limit_mm_s = p.speed_at_load_near(fx_from_f32(load), hint).to_num();
                     m.speed_limit_load_n = load;
                 }
             }
@@ -696,7 +693,7 @@ impl Controller {
         let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>().max(1e-3);
         let Some(p) = self.model.full else { return 0.0 };
         let v = self.profile.velocity_nm_s();
-        let thrust: f32 = p.thrust_n(Fx::saturating_from_num(v.abs() * 1e-6)).to_num();
+        let thrust: f32 = p.thrust_n(fx_from_f32(v.abs() * 1e-6)).to_num();
         let load = v.signum() * self.thrust_bias_n;
         let stall = self.model.stall_n;
         let usable = (thrust - load.max(0.0)).max(0.05 * stall);
@@ -955,9 +952,9 @@ impl Controller {
             // Load observer (the thrust model run forwards): what the applied drive pushes at the
             // measured speed, less what accelerated the mass, is what the load took.
             let d = f32::from(self.generator.direction());
-            let applied = self.model_point(self.generator.amplitude_v()).map_or(0.0, |p| {
-                p.thrust_n(Fx::saturating_from_num(d * self.speed_nm_s * 1e-6)).to_num::<f32>()
-            });
+            let applied = self
+                .model_point(self.generator.amplitude_v())
+                .map_or(0.0, |p| p.thrust_n(fx_from_f32(d * self.speed_nm_s * 1e-6)).to_num::<f32>());
             let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>();
             let accel = (self.speed_nm_s - self.prev_speed_nm_s) / self.dt_s * 1e-9;
             let sample = d * applied - mass * accel;
@@ -977,10 +974,10 @@ impl Controller {
             let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>();
             let load_along = f32::from(dir) * (self.thrust_bias_n + mass * self.accel_ref_nm_s2 * 1e-9);
             let p = self.model.per_volt.voltage_near(
-                Fx::saturating_from_num(self.preload.force_n()),
-                Fx::saturating_from_num(v_cmd.abs() * 1e-6),
-                Fx::saturating_from_num(load_along),
-                Fx::saturating_from_num(self.cfg.max_drive_v),
+                fx_from_f32(self.preload.force_n()),
+                fx_from_f32(v_cmd.abs() * 1e-6),
+                fx_from_f32(load_along),
+                fx_from_f32(self.cfg.max_drive_v),
                 self.drive_v,
             );
             p.to_num::<f32>()
