@@ -5,7 +5,7 @@ use piezo_drive::defaults;
 use piezo_drive::fastmath::{clamp_f32, clamp_i32, clamp_sym_f32};
 use piezo_drive::gcs::{error, Board, Gcs, LoopStats, Pending, Reply, COMMANDS};
 use piezo_drive::safety::fault_record::{self, FaultKind, FaultRecord, RECORD_WORDS};
-use piezo_drive::safety::flash_ecc::ecc_in_page;
+use piezo_drive::safety::flash_ecc::{ecc_in_page, ecc_in_param_page};
 use piezo_drive::safety::probe::{probe_says_floating, FloatDetector};
 use piezo_drive::safety::soft_start::SoftStart;
 use piezo_drive::safety::timing::{DeadlineMonitor, LeakyBucket};
@@ -415,6 +415,15 @@ fn ecc_address_classification() {
     assert!(!page(true, 0x4_0000));
     assert!(!page(true, 0x3_F7F8));
     assert!(!page(false, 0x3_F800), "the same offset in bank 1 is code");
+    // Tolerant form: the page 0x7_F800 from the flash start, banks of 256 KiB.
+    let param = |bk, addr| ecc_in_param_page(bk, addr, 0x7_F800, 0x4_0000, 2048);
+    assert!(param(true, 0x3_F800)); // bank-relative, bank 2
+    assert!(param(true, 0x7_FFF8)); // from the flash start, bank flag set
+    assert!(param(false, 0x7_F800)); // from the flash start, bank flag clear
+    assert!(!param(false, 0x3_F800)); // bank 1 code at the same bank offset
+    assert!(!param(true, 0x3_F7F8));
+    assert!(!param(true, 0x0_1000));
+    assert!(!param(false, 0x7_F7F8));
 }
 
 // ---------------------------------------------------------------- item 7: sensing gaps
@@ -581,4 +590,58 @@ fn fx_from_f32_matches_fixed_without_its_nan_panic() {
         }
     }
     assert_eq!(fx_from_f32(f32::NAN), Fx::ZERO);
+}
+
+#[test]
+fn settings_commands_on_a_copy_then_set_config_equal_running_them_directly() {
+    let lines: [&[u8]; 7] = [
+        b"SPA 1 0xA 0.01\n",
+        b"VEL 1 2.5\n",
+        b"ACC 1 100\n",
+        b"DEC 1 50\n",
+        b"SPA 1 0x1 20 1 0x1002 80\n",
+        b"SPA 1 0x1 -5\n",   // refused: nothing changes
+        b"SPA 1 0xFFFF 1\n", // unknown parameter
+    ];
+    for line in lines {
+        let mut p = None;
+        let mut g = Gcs::new();
+        for &b in line {
+            if let Some(x) = g.push_byte(b) {
+                p = Some(x);
+            }
+        }
+        let p = p.unwrap();
+        assert!(Gcs::is_settings_only(&p));
+        // Directly.
+        let mut direct = idle_controller();
+        let mut gcs_a = Gcs::new();
+        send(&mut gcs_a, &mut direct, b"SVO 1 1\n");
+        let mut board = NoBoard;
+        let mut reply_a = Reply::new();
+        gcs_a.execute(&p, &mut direct, &mut board, &mut reply_a);
+        // On a copy, then the settings only.
+        let mut real = idle_controller();
+        let mut gcs_b = Gcs::new();
+        send(&mut gcs_b, &mut real, b"SVO 1 1\n");
+        let mut copy = real.clone();
+        let mut reply_b = Reply::new();
+        gcs_b.execute(&p, &mut copy, &mut board, &mut reply_b);
+        if *real.config() != *copy.config() {
+            real.set_config(*copy.config()).unwrap();
+        }
+        assert_eq!(reply_a, reply_b);
+        assert_eq!(gcs_a.latched_error(), gcs_b.latched_error(), "{}", String::from_utf8_lossy(line));
+        assert!(*real.config() == *direct.config());
+        for k in 0..100u16 {
+            let inputs = Inputs { preload_word: PRELOAD_WORD, encoder_raw: k / 8, ..Default::default() };
+            assert_eq!(real.step(&inputs), direct.step(&inputs));
+        }
+    }
+    // Not settings-only: motion, servo, queries, stores.
+    for l in [&b"MOV 1 1"[..], b"SVO 1 0", b"SPA? 1 0xA", b"WPA 100", b"VEL? 1"] {
+        let mut line = heapless::Vec::new();
+        line.extend_from_slice(l).unwrap();
+        assert!(!Gcs::is_settings_only(&Pending::Line(line)), "{}", String::from_utf8_lossy(l));
+    }
 }

@@ -32,7 +32,7 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Timer};
 use piezo_drive::controller::ControllerConfig;
-use piezo_drive::safety::flash_ecc::ecc_in_page;
+use piezo_drive::safety::flash_ecc::ecc_in_param_page;
 use piezo_drive::storage::{self, StorageError, RECORD_LEN};
 
 use super::control::{PARKED_TICKS, PARK_REQUEST};
@@ -70,7 +70,7 @@ static ECC_HIT: AtomicBool = AtomicBool::new(false);
 /// in the parameter page while it is being read — and so survivable. Records it for the reader.
 pub fn ecc_error_while_reading(bank2: bool, addr_in_bank: u32) -> bool {
     let ours = READING.load(Ordering::Relaxed)
-        && ecc_in_page(bank2, addr_in_bank, true, PARAM_OFFSET - BANK2_OFFSET, PARAM_PAGE_SIZE);
+        && ecc_in_param_page(bank2, addr_in_bank, PARAM_OFFSET, BANK2_OFFSET, PARAM_PAGE_SIZE);
     if ours {
         ECC_HIT.store(true, Ordering::Relaxed);
     }

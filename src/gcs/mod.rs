@@ -368,6 +368,19 @@ impl Gcs {
         }
     }
 
+    /// Whether `pending` changes nothing but the controller's settings (`SPA`, `VEL`, `ACC`,
+    /// `DEC`): the settings change only through commands, so such a command can run on a copy of
+    /// the controller (parsing, range checks, the trial `validate_settings`: up to ~15 000
+    /// instructions for a full `SPA` line on the Cortex-M4) and the board then only applies the
+    /// copy's settings to the real controller with [`Controller::set_config`] if they differ.
+    pub fn is_settings_only(pending: &Pending) -> bool {
+        let Pending::Line(line) = pending else { return false };
+        let Some(cmd) = line.split(|&b| is_space(b)).find(|t| !t.is_empty()) else {
+            return false;
+        };
+        ["SPA", "VEL", "ACC", "DEC"].iter().any(|n| n.as_bytes().eq_ignore_ascii_case(cmd))
+    }
+
     /// The latched error (without clearing it).
     pub fn latched_error(&self) -> i32 {
         self.error
