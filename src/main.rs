@@ -68,7 +68,13 @@ mod board {
             defmt::warn!("the last reset came from the window watchdog");
         }
         match last_fault {
-            Some(f) => defmt::warn!("last recorded fault (kept across resets): {}", defmt::Debug2Format(&f)),
+            Some(f) => defmt::warn!(
+                "last recorded fault (kept across resets): kind {} (1 overrun, 2 HardFault, 3 NMI, 4 flash ECC, 5 WWDG, 6 panic, 7 unexpected interrupt, 8 controller) at tick {}, seen by {} boots, detail {=[?]:08x}",
+                f.kind as u32,
+                f.tick,
+                f.boots_seen,
+                f.detail[..]
+            ),
             None => defmt::info!("no fault recorded since power-up"),
         }
 
@@ -153,7 +159,7 @@ mod board {
             let state = control::CONTROLLER.lock(|c| c.as_ref().map(|c| c.state())).flatten();
             if state != last_state {
                 if let Some(s) = state {
-                    defmt::info!("controller state: {}", defmt::Debug2Format(&s));
+                    defmt::info!("controller state: {}", state_name(s));
                     if let piezo_drive::controller::State::Fault(code) = s {
                         defmt::error!("controller fault {}: {}", code as u32, code.text());
                         if code != FaultCode::Overrun {
@@ -186,6 +192,18 @@ mod board {
                     control::LATENCY_MAX.load(Ordering::Relaxed)
                 );
             }
+        }
+    }
+
+    fn state_name(s: piezo_drive::controller::State) -> &'static str {
+        use piezo_drive::controller::State;
+        match s {
+            State::Idle => "idle",
+            State::Moving => "moving",
+            State::Holding => "holding",
+            State::Referencing => "referencing",
+            State::OpenLoop => "open-loop stepping",
+            State::Fault(_) => "fault",
         }
     }
 

@@ -341,9 +341,9 @@ fn TIM7_DAC() {
             FaultKind::Overrun,
             [timing.latency, timing.missed, t.bucket.level(), refilled.wrapping_sub(timing.due), 0, 0, 0, 0],
         );
-    } else if t.overrun_latched && controller.as_ref().is_some_and(|c| c.fault() != Some(FaultCode::Overrun))
-    {
-        // The host cleared the fault (SVO): start counting afresh.
+    } else if t.overrun_latched && controller.as_ref().is_some_and(|c| c.fault().is_none()) {
+        // The host cleared the fault (SVO): start counting afresh. (If another fault was
+        // already active, the overrun latch waits for that one to be cleared.)
         t.overrun_latched = false;
         t.bucket.reset();
     }
