@@ -645,3 +645,47 @@ fn settings_commands_on_a_copy_then_set_config_equal_running_them_directly() {
         assert!(!Gcs::is_settings_only(&Pending::Line(line)), "{}", String::from_utf8_lossy(l));
     }
 }
+
+#[test]
+fn overrun_supervisor_reaction() {
+    use piezo_drive::safety::timing::OverrunSupervisor;
+    let mut s = OverrunSupervisor::new(DeadlineMonitor::new(FIRST_DUE, PERIOD, DEADLINE), bucket());
+    let due = |k: u32| FIRST_DUE + k * PERIOD;
+    // On time: enable allowed, watchdogs fed.
+    let t = s.begin(due(0) + 50);
+    let v = s.judge(&t, due(0) + 3_000, false);
+    assert_eq!((v.late, v.tripped_now, v.feed_watchdogs), (false, false, true));
+    assert!(s.enable(true, false));
+    assert!(!s.enable(true, true), "parked");
+    assert!(!s.enable(false, false));
+    // Ticks 1–4 refill 16 000 counts after their due time (past 15 300): late, not fed; the
+    // fourth trips (10, 20, 30, 40).
+    for k in 1..=4 {
+        let t = s.begin(due(k) + 14_000);
+        let v = s.judge(&t, due(k) + 16_000, false);
+        assert!(v.late && !v.feed_watchdogs);
+        assert_eq!(v.tripped_now, k == 4, "tick {k}");
+    }
+    assert!(s.latched());
+    assert!(!s.enable(true, false), "latched: the amplifier stays off");
+    // On time again: fed, but the latch holds while the controller's fault is active.
+    let t = s.begin(due(5) + 10);
+    let v = s.judge(&t, due(5) + 1_000, false);
+    assert_eq!((v.late, v.tripped_now, v.feed_watchdogs), (false, false, true));
+    s.controller_fault_active(true);
+    assert!(s.latched());
+    // The host clears the fault: afresh.
+    s.controller_fault_active(false);
+    assert!(!s.latched());
+    assert_eq!(s.bucket_level(), 0);
+    assert!(s.enable(true, false));
+    // A tick a whole period late trips at once, even though it starts early in its own period.
+    let t = s.begin(due(7) + 20);
+    let v = s.judge(&t, due(7) + 500, false);
+    assert!(v.late && v.tripped_now);
+    // The DMA found in the half just written is late whatever the clock says.
+    s.controller_fault_active(false);
+    let t = s.begin(due(8) + 20);
+    let v = s.judge(&t, due(8) + 500, true);
+    assert!(v.late && !v.tripped_now);
+}

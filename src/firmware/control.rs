@@ -48,7 +48,7 @@ use piezo_drive::controller::{Controller, FaultCode, Inputs, DAC_SAMPLES_PER_STE
 use piezo_drive::gcs::LoopStats;
 use piezo_drive::safety::fault_record::FaultKind;
 use piezo_drive::safety::soft_start::SoftStart;
-use piezo_drive::safety::timing::{DeadlineMonitor, LeakyBucket};
+use piezo_drive::safety::timing::{DeadlineMonitor, LeakyBucket, OverrunSupervisor};
 
 use super::drive::Drive;
 use super::encoder::Encoder;
@@ -182,10 +182,8 @@ pub struct TickCtx {
     pub drive: Drive,
     pub encoder: Encoder,
     pub amp_enable: Output<'static>,
-    deadline: DeadlineMonitor,
-    bucket: LeakyBucket,
-    /// The bucket tripped and the controller holds the `Overrun` fault.
-    overrun_latched: bool,
+    /// Schedule, overrun bucket and latch (`piezo_drive::safety::timing`).
+    overrun: OverrunSupervisor,
     soft: SoftStart,
     /// The samples and enable the last step computed, for this tick's refill.
     pending: [[u16; 2]; DAC_SAMPLES_PER_STEP],
@@ -254,9 +252,10 @@ pub fn start(
             drive,
             encoder,
             amp_enable,
-            deadline: DeadlineMonitor::new(FIRST_DUE_COUNTS, TICK_COUNTS, REFILL_DEADLINE_COUNTS),
-            bucket: OVERRUN_BUCKET,
-            overrun_latched: false,
+            overrun: OverrunSupervisor::new(
+                DeadlineMonitor::new(FIRST_DUE_COUNTS, TICK_COUNTS, REFILL_DEADLINE_COUNTS),
+                OVERRUN_BUCKET,
+            ),
             soft: SoftStart::new(AMP_REST_WORD, SOFT_START_SAMPLES),
             pending: [[AMP_REST_WORD; 2]; DAC_SAMPLES_PER_STEP],
             pending_enable: false,
@@ -297,11 +296,11 @@ fn TIM7_DAC() {
     let (tick, controller) = unsafe { (TICK.in_tick(), CONTROLLER.in_tick()) };
     let Some(t) = tick.as_mut() else { return };
     let start = DWT::cycle_count();
-    let timing = t.deadline.begin(entry);
+    let timing = t.overrun.begin(entry);
 
     // 1. Refill first, with what the last step computed.
     let parked = PARK_REQUEST.load(Ordering::Relaxed);
-    let enable = t.pending_enable && !t.overrun_latched && !parked;
+    let enable = t.overrun.enable(t.pending_enable, parked);
     if !enable {
         t.amp_enable.set_low();
     }
@@ -310,42 +309,42 @@ fn TIM7_DAC() {
     t.drive.write_half(half, &t.pending);
     t.amp_enable.set_level(enable.into());
     let refilled = timebase();
-    // Late: past the deadline, a whole period missed, or the DMA already in the half written.
-    let late = !t.deadline.met(&timing, refilled) || t.drive.dma_half() == half;
+    let verdict = t.overrun.judge(&timing, refilled, t.drive.dma_half() == half);
     if parked {
         PARKED_TICKS.store(PARKED_TICKS.load(Ordering::Relaxed).saturating_add(1), Ordering::Relaxed);
     } else {
         PARKED_TICKS.store(0, Ordering::Relaxed);
     }
 
-    // 2. Lateness: the bucket, and its latched fault.
+    // 2. Lateness: the bucket's verdict, and its latched fault.
     if timing.latency > LATENCY_MAX.load(Ordering::Relaxed) {
         LATENCY_MAX.store(timing.latency, Ordering::Relaxed);
     }
-    if late {
+    if verdict.late {
         bump(&OVERRUNS);
     }
-    if timing.missed > 0 {
-        t.bucket.trip();
-    } else {
-        t.bucket.record(late);
-    }
-    if t.bucket.tripped() && !t.overrun_latched {
+    if verdict.tripped_now {
         t.amp_enable.set_low();
-        t.overrun_latched = true;
         bump(&OVERRUN_TRIPS);
         if let Some(c) = controller.as_mut() {
             c.trip_external(FaultCode::Overrun);
         }
         super::safety::record_fault(
             FaultKind::Overrun,
-            [timing.latency, timing.missed, t.bucket.level(), refilled.wrapping_sub(timing.due), 0, 0, 0, 0],
+            [
+                timing.latency,
+                timing.missed,
+                t.overrun.bucket_level(),
+                refilled.wrapping_sub(timing.due),
+                0,
+                0,
+                0,
+                0,
+            ],
         );
-    } else if t.overrun_latched && controller.as_ref().is_some_and(|c| c.fault().is_none()) {
-        // The host cleared the fault (SVO): start counting afresh. (If another fault was
-        // already active, the overrun latch waits for that one to be cleared.)
-        t.overrun_latched = false;
-        t.bucket.reset();
+    } else if let Some(c) = controller.as_ref() {
+        // The latch clears once the host has cleared every fault (SVO).
+        t.overrun.controller_fault_active(c.fault().is_some());
     }
 
     // 3. The step, for the next tick's refill.
@@ -381,7 +380,7 @@ fn TIM7_DAC() {
     bump(&TICKS);
 
     // 4. Watchdogs: only an on-time tick feeds them.
-    if !late {
+    if verdict.feed_watchdogs {
         super::safety::feed_watchdogs();
     }
 }

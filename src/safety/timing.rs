@@ -117,3 +117,74 @@ impl LeakyBucket {
         self.tripped = false;
     }
 }
+
+/// What one tick's lateness means for the board.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Verdict {
+    /// The tick was late (deadline missed, a period missed, or the DMA already in the half it
+    /// wrote).
+    pub late: bool,
+    /// The bucket tripped at this tick: drop the enable, latch the controller's overrun fault,
+    /// record it.
+    pub tripped_now: bool,
+    /// Only an on-time tick feeds the watchdogs.
+    pub feed_watchdogs: bool,
+}
+
+/// The control tick's overrun supervision as the firmware runs it: the schedule, the bucket and
+/// the latch, in one place so the whole reaction is tested on the host.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct OverrunSupervisor {
+    deadline: DeadlineMonitor,
+    bucket: LeakyBucket,
+    latched: bool,
+}
+
+impl OverrunSupervisor {
+    pub const fn new(deadline: DeadlineMonitor, bucket: LeakyBucket) -> Self {
+        OverrunSupervisor { deadline, bucket, latched: false }
+    }
+
+    /// At the tick's entry (timebase reading `now`).
+    pub fn begin(&mut self, now: u32) -> TickTiming {
+        self.deadline.begin(now)
+    }
+
+    /// Whether the amplifier may be enabled for the samples being written: the controller wants
+    /// it, no overrun is latched and the drive is not parked.
+    pub fn enable(&self, controller_enable: bool, parked: bool) -> bool {
+        controller_enable && !self.latched && !parked
+    }
+
+    /// After the refill, finished at timebase reading `refilled`; `dma_in_written_half`: the DMA
+    /// had already entered the half just written.
+    pub fn judge(&mut self, t: &TickTiming, refilled: u32, dma_in_written_half: bool) -> Verdict {
+        let late = !self.deadline.met(t, refilled) || dma_in_written_half;
+        if t.missed > 0 {
+            self.bucket.trip();
+        } else {
+            self.bucket.record(late);
+        }
+        let tripped_now = self.bucket.tripped() && !self.latched;
+        if tripped_now {
+            self.latched = true;
+        }
+        Verdict { late, tripped_now, feed_watchdogs: !late }
+    }
+
+    /// Once the controller has no fault any more (the host cleared it), the latch and the bucket
+    /// start afresh. While any fault is active the latch stays.
+    pub fn controller_fault_active(&mut self, active: bool) {
+        if self.latched && !active {
+            self.latched = false;
+            self.bucket.reset();
+        }
+    }
+
+    pub fn latched(&self) -> bool {
+        self.latched
+    }
+    pub fn bucket_level(&self) -> u32 {
+        self.bucket.level()
+    }
+}
