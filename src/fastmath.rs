@@ -48,3 +48,62 @@ fn hw_sqrt(x: f32) -> f32 {
     }
     r as f32
 }
+
+/// `x` limited to `lo..=hi`, as `f32::clamp` for ordered bounds, but never panics: `f32::clamp`
+/// asserts `lo <= hi` and that neither bound is NaN, which links a panic path into every caller
+/// (the control tick included). Here a NaN bound is ignored (the comparison is false) and
+/// `lo > hi` gives `lo` below `lo`, `hi` above `hi`. A NaN `x` stays NaN, as with `f32::clamp`.
+#[inline]
+pub fn clamp_f32(x: f32, lo: f32, hi: f32) -> f32 {
+    if x < lo {
+        lo
+    } else if x > hi {
+        hi
+    } else {
+        x
+    }
+}
+
+/// `x` limited to `-lim..=lim` without a panic path (see [`clamp_f32`]).
+#[inline]
+pub fn clamp_sym_f32(x: f32, lim: f32) -> f32 {
+    clamp_f32(x, -lim, lim)
+}
+
+/// `Ord::clamp` for i32 without its `lo <= hi` assertion.
+#[inline]
+pub fn clamp_i32(x: i32, lo: i32, hi: i32) -> i32 {
+    if x < lo {
+        lo
+    } else if x > hi {
+        hi
+    } else {
+        x
+    }
+}
+
+/// `Fx::saturating_from_num(x)` without its panic: that function panics on NaN, which links a
+/// panic path into the control tick. Same result for every non-NaN `x` (round to nearest, ties
+/// to even; saturating at the type's limits; `tests/safety.rs` compares the two), 0 for NaN.
+#[inline]
+pub fn fx_from_f32(x: f32) -> crate::Fx {
+    // Scaling by 2¹⁶ is exact (a power of two; below 2⁻¹²⁶ the value rounds to 0 either way).
+    let s = x * 65536.0;
+    let bits = if s.is_nan() {
+        0
+    } else if s >= 2_147_483_647.0 {
+        i32::MAX
+    } else if s <= -2_147_483_648.0 {
+        i32::MIN
+    } else if s.abs() >= 8_388_608.0 {
+        // |s| ≥ 2²³: already a whole number.
+        s as i32
+    } else if s >= 0.0 {
+        // Adding and removing 2²³ rounds to a whole number, to nearest with ties to even (the
+        // IEEE default, which Rust never changes).
+        ((s + 8_388_608.0) - 8_388_608.0) as i32
+    } else {
+        ((s - 8_388_608.0) + 8_388_608.0) as i32
+    };
+    crate::Fx::from_bits(bits)
+}

@@ -3,6 +3,7 @@
 //! the static (DC) offsets slew at a bounded rate; a direction change ramps the amplitude to zero,
 //! flips the quarter-period offset and ramps back, so no command makes a step in the output.
 
+use crate::fastmath::{clamp_f32, clamp_i32};
 use crate::trig::sin_turn_q30;
 
 /// DAC and amplifier: volts at the amplifier output per DAC word, and the allowed output range.
@@ -28,8 +29,8 @@ impl DacConfig {
     /// Volts at the amplifier output → DAC word in 1/65536 of a word (Q16), clamped to the range
     /// and to the 12-bit word range (so every Q16 quantity fits an i32 with room for sums).
     fn volts_to_q16(&self, v: f32) -> i32 {
-        let v = v.clamp(self.min_v, self.max_v);
-        let words = (v / self.full_scale_v * f32::from(Self::DAC_MAX_WORD)).clamp(0.0, 4095.0);
+        let v = clamp_f32(v, self.min_v, self.max_v);
+        let words = clamp_f32(v / self.full_scale_v * f32::from(Self::DAC_MAX_WORD), 0.0, 4095.0);
         (words * 65536.0) as i32
     }
     pub fn mid_v(&self) -> f32 {
@@ -54,7 +55,7 @@ impl Levels {
     fn word(self, phase: u32, dc_q16: i32, amp_q16: i32) -> u16 {
         // amplitude (< 2²⁸) × sine (Q30): one 32×32→64 multiply.
         let ac = ((i64::from(amp_q16) * i64::from(sin_turn_q30(phase))) >> 30) as i32;
-        let v = (self.mid + dc_q16 + ac).clamp(self.min, self.max);
+        let v = clamp_i32(self.mid + dc_q16 + ac, self.min, self.max);
         ((v + 32768) >> 16).clamp(0, i32::from(DacConfig::DAC_MAX_WORD)) as u16
     }
 }
@@ -114,7 +115,7 @@ impl QuadratureGenerator {
     /// Sets the drive frequency, clamped to the allowed range; the phase continues.
     pub fn set_frequency_hz(&mut self, f: f32) {
         let f = if f.is_finite() {
-            f.clamp(self.cfg.min_freq_hz, self.cfg.max_freq_hz)
+            clamp_f32(f, self.cfg.min_freq_hz, self.cfg.max_freq_hz)
         } else {
             self.cfg.min_freq_hz
         };
@@ -132,7 +133,7 @@ impl QuadratureGenerator {
         let half_v = if volts_pp.is_finite() { 0.5 * volts_pp.max(0.0) } else { 0.0 };
         let room = (self.cfg.mid_v() - self.cfg.min_v).min(self.cfg.max_v - self.cfg.mid_v());
         let half = half_v.min(room);
-        let words = (half / self.cfg.full_scale_v * f32::from(DacConfig::DAC_MAX_WORD)).clamp(0.0, 4095.0);
+        let words = clamp_f32(half / self.cfg.full_scale_v * f32::from(DacConfig::DAC_MAX_WORD), 0.0, 4095.0);
         self.amp_target_q16 = (words * 65536.0) as i32;
     }
 
@@ -197,14 +198,17 @@ impl QuadratureGenerator {
 
     /// Back to the configured slew rate.
     pub fn reset_slew(&mut self) {
-        let words = (self.cfg.slew_v_per_sample / self.cfg.full_scale_v * f32::from(DacConfig::DAC_MAX_WORD))
-            .clamp(0.0, 4095.0);
+        let words = clamp_f32(
+            self.cfg.slew_v_per_sample / self.cfg.full_scale_v * f32::from(DacConfig::DAC_MAX_WORD),
+            0.0,
+            4095.0,
+        );
         self.slew_q16 = (words * 65536.0) as i32;
         self.slew_q16 = self.slew_q16.max(1);
     }
 
     fn slew(value: &mut i32, target: i32, step: i32) {
-        *value += (target - *value).clamp(-step, step);
+        *value += clamp_i32(target - *value, -step, step);
     }
 
     /// The next sample for both channels.
@@ -274,9 +278,9 @@ impl QuadratureGenerator {
         }
         let [l1, l2] = self.static_step_q16.map(|s| if s > 0 { s.min(slew) } else { slew });
         for s in buf.iter_mut() {
-            amp += (amp_t - amp).clamp(-slew, slew);
-            dc1 += (t1 - dc1).clamp(-l1, l1);
-            dc2 += (t2 - dc2).clamp(-l2, l2);
+            amp += clamp_i32(amp_t - amp, -slew, slew);
+            dc1 += clamp_i32(t1 - dc1, -l1, l1);
+            dc2 += clamp_i32(t2 - dc2, -l2, l2);
             *s = [l.word(phase, dc1, amp), l.word(phase.wrapping_add(offset), dc2, amp)];
             phase = phase.wrapping_add(step);
         }

@@ -21,6 +21,7 @@ pub mod model;
 pub mod motor_table;
 pub mod pil_wire;
 pub mod profile;
+pub mod safety;
 pub mod sensors;
 pub mod storage;
 pub mod trig;

@@ -7,17 +7,19 @@ mod firmware;
 
 #[cfg(target_os = "none")]
 mod board {
+    use core::sync::atomic::Ordering;
     use defmt_rtt as _;
     use embassy_executor::Spawner;
-    use embassy_stm32::exti::ExtiInput;
-    use embassy_stm32::gpio::{Level, Output, Pull, Speed};
+
+    use embassy_stm32::gpio::{Level, Output, Speed};
     use embassy_stm32::time::Hertz;
     use embassy_stm32::usart::{self, BufferedUart};
     use embassy_stm32::wdg::IndependentWatchdog;
     use embassy_stm32::{bind_interrupts, peripherals, rcc};
     use embassy_time::Timer;
-    use piezo_drive::controller::Controller;
+    use piezo_drive::controller::{Controller, FaultCode};
     use piezo_drive::defaults;
+    use piezo_drive::safety::fault_record::FaultKind;
 
     use crate::firmware::{control, encoder, params_flash, preload, safety, uart};
 
@@ -47,13 +49,33 @@ mod board {
     #[embassy_executor::main]
     async fn main(spawner: Spawner) {
         let reset = safety::take_reset_cause();
+        let last_fault = safety::take_last_fault();
         let p = embassy_stm32::init(clocks());
         // Amplifier off before anything else is set up.
         let amp_enable = Output::new(p.PA10, Level::Low, Speed::Low);
         safety::freeze_on_debug_halt();
+        // The independent watchdog runs from here on (item: a torn parameter page must not hang
+        // the boot); until the tick feeds it, `main` does. It is configured before the tick
+        // runs: the tick's reloads (KR writes) would otherwise re-lock PR/RLR between embassy's
+        // unlock and its writes (RM0440 IWDG).
+        let mut wdg = IndependentWatchdog::new(p.IWDG, safety::WATCHDOG_TIMEOUT_US);
+        wdg.unleash();
         defmt::info!("piezo-drive {} up at 170 MHz; reset cause {}", env!("CARGO_PKG_VERSION"), reset);
         if reset.independent_watchdog {
             defmt::warn!("the last reset came from the independent watchdog");
+        }
+        if reset.window_watchdog {
+            defmt::warn!("the last reset came from the window watchdog");
+        }
+        match last_fault {
+            Some(f) => defmt::warn!(
+                "last recorded fault (kept across resets): kind {} (1 overrun, 2 HardFault, 3 NMI, 4 flash ECC, 5 WWDG, 6 panic, 7 unexpected interrupt, 8 controller) at tick {}, seen by {} boots, detail {=[?]:08x}",
+                f.kind as u32,
+                f.tick,
+                f.boots_seen,
+                f.detail[..]
+            ),
+            None => defmt::info!("no fault recorded since power-up"),
         }
 
         // DWT cycle counter for the loop timing.
@@ -67,7 +89,8 @@ mod board {
         // Parameters: flash record or defaults.
         let defaults = defaults::controller_config();
         let mut flash = params_flash::open(p.FLASH);
-        let (cfg, loaded) = params_flash::load(flash.as_mut(), &defaults);
+        let (cfg, loaded) = params_flash::load(flash.as_mut(), &defaults, &mut || wdg.pet());
+        wdg.pet();
         match loaded {
             Ok(()) => defmt::info!("parameters loaded from flash"),
             Err(e) => defmt::info!("parameters: defaults ({})", defmt::Debug2Format(&e)),
@@ -84,7 +107,7 @@ mod board {
         };
         control::install_controller(ctl);
 
-        // Drive output.
+        // Drive output (at the amplifier's rest word until the first enable ramps it up).
         #[cfg(feature = "dac-drive")]
         let drive = crate::firmware::drive::Drive::new(p.DAC1, p.PA4, p.PA5, p.TIM6, p.DMA1_CH1);
         #[cfg(all(feature = "pwm-drive", not(feature = "dac-drive")))]
@@ -92,7 +115,7 @@ mod board {
 
         // Sensors.
         let enc = encoder::Encoder::new(p.TIM3, p.PA6, p.PA7);
-        let index = ExtiInput::new(p.PB10, p.EXTI10, Pull::Down);
+        encoder::start_index(p.PB10);
         let cell = preload::Preload::new(p.ADC1, p.PC0);
 
         // UART on the ST-LINK virtual COM port.
@@ -109,7 +132,6 @@ mod board {
         };
 
         spawn(&spawner, "preload", spawner.spawn(preload::preload_task(cell)));
-        spawn(&spawner, "index", spawner.spawn(encoder::index_task(index)));
         spawn(&spawner, "uart", spawner.spawn(uart::uart_task(serial)));
         if let Some(flash) = flash {
             spawn(&spawner, "flash", spawner.spawn(params_flash::flash_task(flash, defaults)));
@@ -119,24 +141,69 @@ mod board {
 
         // Give the preload filter a few samples before the loop starts.
         Timer::after_millis(5).await;
-        // The watchdog is configured before the tick runs: the tick's reloads (KR writes) would
-        // otherwise re-lock PR/RLR between embassy's unlock and its writes (RM0440 IWDG).
-        let mut wdg = IndependentWatchdog::new(p.IWDG, safety::WATCHDOG_TIMEOUT_US);
-        wdg.unleash();
-        control::start(p.TIM7, drive, enc, amp_enable);
+        wdg.pet();
+        control::start(p.TIM7, p.TIM5, drive, enc, amp_enable);
         defmt::info!("control loop running at {} Hz", defaults::LOOP_HZ);
+        // From here the tick feeds both watchdogs; the window watchdog starts once it runs.
+        Timer::after_millis(1).await;
+        safety::start_window_watchdog();
+        // `wdg` is not fed from here on (it has no `Drop`; the IWDG keeps running).
 
+        // Every state change and fault of the controller goes to the log (and a fault into the
+        // no-init record); the loop statistics every 10 s.
+        let mut last_state = None;
+        let mut last_trips = 0;
+        let mut polls: u32 = 0;
         loop {
-            Timer::after_secs(10).await;
-            let s = control::loop_stats();
-            defmt::info!(
-                "ticks {} step cycles last {} max {} overruns {} servo-offs for overruns {}",
-                control::ticks(),
-                s.step_cycles_last,
-                s.step_cycles_max,
-                s.overruns,
-                control::OVERRUN_SERVO_OFFS.load(core::sync::atomic::Ordering::Relaxed)
-            );
+            Timer::after_millis(10).await;
+            let state = control::CONTROLLER.lock(|c| c.as_ref().map(|c| c.state())).flatten();
+            if state != last_state {
+                if let Some(s) = state {
+                    defmt::info!("controller state: {}", state_name(s));
+                    if let piezo_drive::controller::State::Fault(code) = s {
+                        defmt::error!("controller fault {}: {}", code as u32, code.text());
+                        if code != FaultCode::Overrun {
+                            safety::record_fault(FaultKind::Controller, [code as u32, 0, 0, 0, 0, 0, 0, 0]);
+                        }
+                    }
+                }
+                last_state = state;
+            }
+            let trips = control::OVERRUN_TRIPS.load(Ordering::Relaxed);
+            if trips != last_trips {
+                defmt::error!(
+                    "control loop overrun: amplifier disabled (trips {}, late ticks {}, worst start latency {} counts)",
+                    trips,
+                    control::loop_stats().overruns,
+                    control::LATENCY_MAX.load(Ordering::Relaxed)
+                );
+                last_trips = trips;
+            }
+            polls = polls.wrapping_add(1);
+            if polls % 1000 == 0 {
+                let s = control::loop_stats();
+                defmt::info!(
+                    "ticks {} step cycles last {} max {} late ticks {} overrun trips {} worst latency {}",
+                    control::ticks(),
+                    s.step_cycles_last,
+                    s.step_cycles_max,
+                    s.overruns,
+                    trips,
+                    control::LATENCY_MAX.load(Ordering::Relaxed)
+                );
+            }
+        }
+    }
+
+    fn state_name(s: piezo_drive::controller::State) -> &'static str {
+        use piezo_drive::controller::State;
+        match s {
+            State::Idle => "idle",
+            State::Moving => "moving",
+            State::Holding => "holding",
+            State::Referencing => "referencing",
+            State::OpenLoop => "open-loop stepping",
+            State::Fault(_) => "fault",
         }
     }
 

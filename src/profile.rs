@@ -66,7 +66,7 @@ impl Profile {
         let v_des = dir * v_max_nm_s.max(0.0).min(v_stop.max(0.0));
         let speeding_up = v_des * self.vel_nm_s >= 0.0 && v_des.abs() > self.vel_nm_s.abs();
         let a = if speeding_up { a_up } else { a_down };
-        let dv = (v_des - self.vel_nm_s).clamp(-a * dt_s, a * dt_s);
+        let dv = crate::fastmath::clamp_sym_f32(v_des - self.vel_nm_s, a * dt_s);
         self.vel_nm_s += dv;
         let step = self.vel_nm_s * dt_s;
         // Arrive when this step would reach the target and the speed is one a stop can absorb.

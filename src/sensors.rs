@@ -43,7 +43,8 @@ impl Encoder {
     }
     /// Declares the present position to be `position_nm` (referencing).
     pub fn set_position_nm(&mut self, position_nm: i64) {
-        self.counts = position_nm / self.nm_per_count;
+        // `nm_per_count` ≥ 1 (see `new`): the checked form only keeps a panic path out.
+        self.counts = position_nm.checked_div(self.nm_per_count).unwrap_or(position_nm);
     }
 }
 
@@ -80,7 +81,7 @@ impl PreloadCell {
         }
         let n = (f32::from(word) - f32::from(self.cal.zero_word)) * self.cal.newton_per_word;
         if self.primed {
-            let a = self.cal.filter_alpha.clamp(1e-4, 1.0);
+            let a = crate::fastmath::clamp_f32(self.cal.filter_alpha, 1e-4, 1.0);
             self.filtered_n += a * (n - self.filtered_n);
         } else {
             self.filtered_n = n;

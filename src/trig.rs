@@ -131,7 +131,7 @@ pub fn asin(x: Fx) -> Fx {
         asin_small(a)
     } else {
         // asin(a) = π/2 − asin(√(1 − a²)), with √(1 − a²) < √½ here.
-        let c = Fx::saturating_from_num(crate::fastmath::sqrt_f32((Fx::ONE - a * a).to_num::<f32>()));
+        let c = crate::fastmath::fx_from_f32(crate::fastmath::sqrt_f32((Fx::ONE - a * a).to_num::<f32>()));
         half_pi - asin_small(c)
     };
     if neg {

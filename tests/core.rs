@@ -270,6 +270,7 @@ fn pil_frames_round_trip_and_reject_unknown_commands() {
             encoder_raw: 0xBEEF,
             preload_word: 4095,
             index: true,
+            index_raw: if command == Command::None { None } else { Some(0x1234) },
             negative_limit: false,
             positive_limit: true,
         };

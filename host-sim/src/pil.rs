@@ -400,6 +400,8 @@ pub fn run(p: &Params, args: &PilArgs, elf: &Path) -> Result<PilResult> {
                     FaultCode::PreloadOutOfWindow,
                     FaultCode::PreloadSensor,
                     FaultCode::EncoderJump,
+                    FaultCode::Overrun,
+                    FaultCode::EncoderLoss,
                 ]
                 .into_iter()
                 .find(|c| *c as u8 == code)

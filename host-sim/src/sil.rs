@@ -155,6 +155,7 @@ impl Sil {
             index,
             negative_limit,
             positive_limit,
+            ..Default::default()
         }
     }
 

@@ -8,11 +8,11 @@
 //! and moves it by a fraction of its stroke. Supervision puts the drive in a safe state on any
 //! fault; only [`Controller::clear_fault`] leaves it.
 
+use crate::fastmath::{clamp_sym_f32, fx_from_f32};
 use crate::generator::QuadratureGenerator;
 use crate::model::{PerVolt, ThrustPoint};
 use crate::profile::Profile;
 use crate::sensors::{Encoder, PreloadCell};
-use crate::Fx;
 
 mod config;
 pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
@@ -28,6 +28,12 @@ pub enum FaultCode {
     PreloadOutOfWindow = 3,
     PreloadSensor = 4,
     EncoderJump = 5,
+    /// The board's control tick missed its deadline (latched by the board, see
+    /// [`Controller::trip_external`]); the board has already dropped the amplifier enable.
+    Overrun = 6,
+    /// Fine mode commanded corrections the encoder never saw: the encoder signal is lost (or
+    /// the foot slips without moving the slider).
+    EncoderLoss = 7,
 }
 
 impl FaultCode {
@@ -38,6 +44,8 @@ impl FaultCode {
             FaultCode::PreloadOutOfWindow => "preload outside the usable window",
             FaultCode::PreloadSensor => "preload sensor reading invalid",
             FaultCode::EncoderJump => "encoder jump",
+            FaultCode::Overrun => "control loop overrun: drive disabled",
+            FaultCode::EncoderLoss => "encoder loss: fine corrections not seen by the encoder",
         }
     }
 }
@@ -96,6 +104,10 @@ pub struct Inputs {
     pub preload_word: u16,
     /// Encoder index seen since the last period.
     pub index: bool,
+    /// The raw encoder count latched at the index edge, when the board latches it (in the
+    /// EXTI handler or by timer capture). Referencing on the index then places the reference
+    /// at the edge itself rather than where the slider is at this period's read.
+    pub index_raw: Option<u16>,
     /// Limit switches (active = the slider is at or beyond the end of travel on that side).
     pub negative_limit: bool,
     pub positive_limit: bool,
@@ -138,6 +150,11 @@ struct ModelCache {
     tick: u32,
 }
 
+/// Fine-mode encoder-loss check: a correction expected to move at least this many counts that
+/// moves none counts as a miss; this many misses in a row trip [`FaultCode::EncoderLoss`].
+const FINE_LOSS_MIN_COUNTS: i64 = 4;
+const FINE_LOSS_MISSES: u32 = 3;
+
 /// Load-estimate change (N) that recomputes the speed limit (a few µm/s of limit).
 const LOAD_RESOLVE_N: f32 = 0.005;
 
@@ -148,7 +165,7 @@ const PRELOAD_RESOLVE_N: f32 = 0.02;
 impl ModelCache {
     fn new(cfg: &ControllerConfig) -> Self {
         ModelCache {
-            per_volt: cfg.motor.at_frequency(Fx::saturating_from_num(cfg.drive_freq_hz / 1000.0)),
+            per_volt: cfg.motor.at_frequency(fx_from_f32(cfg.drive_freq_hz / 1000.0)),
             full: None,
             preload_n: 0.0,
             stall_n: 0.0,
@@ -161,6 +178,9 @@ impl ModelCache {
     }
 }
 
+/// `Clone` lets a board answer read-only protocol queries from a copy taken in a short critical
+/// section, instead of holding the control tick off while it formats the reply.
+#[derive(Clone)]
 pub struct Controller {
     cfg: ControllerConfig,
     model: ModelCache,
@@ -188,6 +208,11 @@ pub struct Controller {
     fine_cmd_v: f32,
     fine_rate_v_s: f32,
     fine_settle: u32,
+    /// Encoder-loss check of the fine mode: counts the last correction should move (0 = none
+    /// pending), the count when it was commanded, and corrections in a row the encoder missed.
+    fine_expect_counts: i64,
+    fine_start_counts: i64,
+    fine_misses: u32,
     /// Load observer: thrust along +x the model says the motor gives, less M·a (N).
     observed_bias_n: f32,
     prev_speed_nm_s: f32,
@@ -243,6 +268,9 @@ impl Controller {
             fine_cmd_v: 0.0,
             fine_rate_v_s: 0.0,
             fine_settle: 0,
+            fine_expect_counts: 0,
+            fine_start_counts: 0,
+            fine_misses: 0,
             observed_bias_n: cfg.expected_load_n,
             model: ModelCache::new(&cfg),
             prev_speed_nm_s: 0.0,
@@ -362,7 +390,7 @@ impl Controller {
     /// Fixed-point model at the measured preload and the given drive.
     fn model_point(&self, volts: f32) -> Option<ThrustPoint> {
         let preload = self.preload_n()?;
-        Some(self.model.per_volt.point(Fx::saturating_from_num(preload), Fx::saturating_from_num(volts)))
+        Some(self.model.per_volt.point(fx_from_f32(preload), fx_from_f32(volts)))
     }
 
     /// Stall force (N) and no-load speed (mm/s) at full drive and the measured preload.
@@ -394,9 +422,7 @@ impl Controller {
         m.tick = m.tick.wrapping_add(1);
         let fresh = m.full.is_none();
         if fresh || (preload - m.preload_n).abs() > PRELOAD_RESOLVE_N {
-            let p = m
-                .per_volt
-                .point(Fx::saturating_from_num(preload), Fx::saturating_from_num(self.cfg.max_drive_v));
+            let p = m.per_volt.point(fx_from_f32(preload), fx_from_f32(self.cfg.max_drive_v));
             m.full = Some(p);
             m.preload_n = preload;
             m.stall_n = p.stall_force_n().to_num();
@@ -422,7 +448,7 @@ impl Controller {
                 let never = m.speed_limit_load_n.is_nan();
                 if never || (load - m.speed_limit_load_n).abs() > LOAD_RESOLVE_N {
                     let hint = if never { f32::NAN } else { m.speed_limit_mm_s };
-                    m.speed_limit_mm_s = p.speed_at_load_near(Fx::saturating_from_num(load), hint).to_num();
+                    m.speed_limit_mm_s = p.speed_at_load_near(fx_from_f32(load), hint).to_num();
                     m.speed_limit_load_n = load;
                 }
             }
@@ -448,6 +474,8 @@ impl Controller {
         }
         self.servo = on;
         if on {
+            self.fine_misses = 0;
+            self.fine_expect_counts = 0;
             let here = self.position_nm();
             self.profile.reset(here);
             self.enter_hold();
@@ -617,6 +645,16 @@ impl Controller {
         self.on_target_s = 0.0;
     }
 
+    /// A fault found outside the core (the board's loop timing): the same safe state as a fault
+    /// of the core's own (servo off, outputs ramped to mid-range, amplifier disabled in the
+    /// outputs from this period on), latched until [`Self::clear_fault`]. An active fault stays
+    /// (the first cause is the one reported).
+    pub fn trip_external(&mut self, code: FaultCode) {
+        if !matches!(self.state, State::Fault(_)) {
+            self.trip(code);
+        }
+    }
+
     fn trip(&mut self, code: FaultCode) {
         self.faults = self.faults.wrapping_add(1);
         self.state = State::Fault(code);
@@ -655,7 +693,7 @@ impl Controller {
         let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>().max(1e-3);
         let Some(p) = self.model.full else { return 0.0 };
         let v = self.profile.velocity_nm_s();
-        let thrust: f32 = p.thrust_n(Fx::saturating_from_num(v.abs() * 1e-6)).to_num();
+        let thrust: f32 = p.thrust_n(fx_from_f32(v.abs() * 1e-6)).to_num();
         let load = v.signum() * self.thrust_bias_n;
         let stall = self.model.stall_n;
         let usable = (thrust - load.max(0.0)).max(0.05 * stall);
@@ -816,6 +854,9 @@ impl Controller {
                     self.fine_cmd_v = self.fine_offset_v;
                     self.fine_rate_v_s = 0.0;
                     self.fine_settle = 0;
+                    // Misses carry over: a frozen encoder sends the fine mode out of stroke and
+                    // back through the coarse mode, again and again.
+                    self.fine_expect_counts = 0;
                 }
             }
             Mode::Fine => {
@@ -836,9 +877,24 @@ impl Controller {
         let nm_per_v = self.cfg.motor.fine_nm_per_v.to_num::<f32>().max(1e-3);
         let room = self.fine_room_v();
         let at_rest = self.fine_rate_v_s == 0.0 && (self.fine_cmd_v - self.fine_offset_v).abs() < 1e-3;
+        let counts = self.encoder.map_or(0, |e| e.counts());
         if at_rest {
-            self.fine_settle += 1;
-            let half_count = 0.5 * self.encoder.map_or(50, |e| e.nm_per_count()) as f32;
+            self.fine_settle = self.fine_settle.saturating_add(1);
+            if self.fine_settle >= 4 && self.fine_expect_counts != 0 {
+                // The last correction has been carried out and settled: did the encoder see it?
+                let moved = counts.saturating_sub(self.fine_start_counts);
+                if self.fine_expect_counts.abs() >= FINE_LOSS_MIN_COUNTS && moved == 0 {
+                    self.fine_misses = self.fine_misses.saturating_add(1);
+                } else if moved != 0 {
+                    self.fine_misses = 0;
+                }
+                self.fine_expect_counts = 0;
+                if self.fine_misses >= FINE_LOSS_MISSES {
+                    return self.trip(FaultCode::EncoderLoss);
+                }
+            }
+            let nm_per_count = self.encoder.map_or(50, |e| e.nm_per_count());
+            let half_count = 0.5 * nm_per_count as f32;
             if self.fine_settle >= 4 && err_nm.abs() > half_count {
                 let wanted = self.fine_offset_v + err_nm / nm_per_v;
                 if wanted.abs() > room {
@@ -848,6 +904,8 @@ impl Controller {
                 }
                 self.fine_cmd_v = wanted;
                 self.fine_settle = 0;
+                self.fine_expect_counts = (err_nm / nm_per_count.max(1) as f32) as i64;
+                self.fine_start_counts = counts;
             }
         } else {
             self.fine_settle = 0;
@@ -863,7 +921,7 @@ impl Controller {
         if d.abs() < 1e-4 {
             rate_des = 0.0;
         }
-        self.fine_rate_v_s += (rate_des - self.fine_rate_v_s).clamp(-accel_v_s2 * dt, accel_v_s2 * dt);
+        self.fine_rate_v_s += clamp_sym_f32(rate_des - self.fine_rate_v_s, accel_v_s2 * dt);
         let next = self.fine_offset_v + self.fine_rate_v_s * dt;
         if (self.fine_cmd_v - next) * d <= 0.0 {
             self.fine_offset_v = self.fine_cmd_v;
@@ -894,9 +952,9 @@ impl Controller {
             // Load observer (the thrust model run forwards): what the applied drive pushes at the
             // measured speed, less what accelerated the mass, is what the load took.
             let d = f32::from(self.generator.direction());
-            let applied = self.model_point(self.generator.amplitude_v()).map_or(0.0, |p| {
-                p.thrust_n(Fx::saturating_from_num(d * self.speed_nm_s * 1e-6)).to_num::<f32>()
-            });
+            let applied = self
+                .model_point(self.generator.amplitude_v())
+                .map_or(0.0, |p| p.thrust_n(fx_from_f32(d * self.speed_nm_s * 1e-6)).to_num::<f32>());
             let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>();
             let accel = (self.speed_nm_s - self.prev_speed_nm_s) / self.dt_s * 1e-9;
             let sample = d * applied - mass * accel;
@@ -910,16 +968,16 @@ impl Controller {
             }
             // The integral on the position error corrects what the model gets wrong.
             self.integral_n =
-                (self.integral_n + self.cfg.ki_n_per_nm_s * err_nm * self.dt_s).clamp(-stall, stall);
-            self.thrust_bias_n = (self.observed_bias_n + self.integral_n).clamp(-stall, stall);
+                clamp_sym_f32(self.integral_n + self.cfg.ki_n_per_nm_s * err_nm * self.dt_s, stall);
+            self.thrust_bias_n = clamp_sym_f32(self.observed_bias_n + self.integral_n, stall);
             // Inertia of the profile's acceleration is part of the load (F = M·a).
             let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>();
             let load_along = f32::from(dir) * (self.thrust_bias_n + mass * self.accel_ref_nm_s2 * 1e-9);
             let p = self.model.per_volt.voltage_near(
-                Fx::saturating_from_num(self.preload.force_n()),
-                Fx::saturating_from_num(v_cmd.abs() * 1e-6),
-                Fx::saturating_from_num(load_along),
-                Fx::saturating_from_num(self.cfg.max_drive_v),
+                fx_from_f32(self.preload.force_n()),
+                fx_from_f32(v_cmd.abs() * 1e-6),
+                fx_from_f32(load_along),
+                fx_from_f32(self.cfg.max_drive_v),
                 self.drive_v,
             );
             p.to_num::<f32>()
@@ -932,7 +990,7 @@ impl Controller {
             let pushing_limit = unclamped.abs() >= max_v && unclamped * err_nm > 0.0;
             if !pushing_limit {
                 self.integral_v =
-                    (self.integral_v + self.cfg.fb_ki_v_per_nm_s * err_nm * self.dt_s).clamp(-max_v, max_v);
+                    clamp_sym_f32(self.integral_v + self.cfg.fb_ki_v_per_nm_s * err_nm * self.dt_s, max_v);
             }
             let signed = p_term + self.integral_v;
             dir = if signed >= 0.0 { 1 } else { -1 };
@@ -941,7 +999,7 @@ impl Controller {
         self.drive_v = volts;
         // While the sine runs the foot slides anyway: bring the static offset back to centre.
         let recentre = 10.0 * self.dt_s * self.fine_room_v();
-        self.fine_offset_v -= self.fine_offset_v.clamp(-recentre, recentre);
+        self.fine_offset_v -= clamp_sym_f32(self.fine_offset_v, recentre);
         self.fine_rate_v_s = 0.0;
         self.generator.ramp_static_offsets_v([self.fine_offset_v; 2], DAC_SAMPLES_PER_STEP as u32);
         self.generator.set_direction(dir);
@@ -959,7 +1017,15 @@ impl Controller {
             ReferenceSignal::NegativeLimit => inputs.negative_limit,
         };
         if found {
-            self.set_reference_here(self.cfg.reference_position_nm);
+            let mut at = self.cfg.reference_position_nm;
+            if let (ReferenceSignal::Index, false, Some(raw), Some(e)) =
+                (self.cfg.reference_signal, self.reference_on_limit, inputs.index_raw, self.encoder)
+            {
+                // Counts moved since the latched edge (well within ±2¹⁵ in one period).
+                let since = i64::from(inputs.encoder_raw.wrapping_sub(raw) as i16);
+                at = at.saturating_add(since.saturating_mul(e.nm_per_count()));
+            }
+            self.set_reference_here(at);
             self.end_open_loop_motion();
             return;
         }

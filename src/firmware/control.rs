@@ -5,21 +5,32 @@
 //! firmware cannot own the DMA1_CH1 vector without patching embassy. TIM7 counts the same
 //! 170 MHz clock as the sample timer (TIM6 or TIM1) with exactly 20× its period and both are
 //! started in the same critical section, so the tick is phase-locked to the DMA for good: it comes
-//! [`TICK_OFFSET_SAMPLES`] samples after the DMA crosses into a half. Each tick reads the DMA's
-//! position (NDTR) and refills the other half, which the DMA reaches 90 µs later; if the DMA is
-//! found in the same half as last time, or has entered the half just written by the time the
-//! step is done, the tick counts an overrun and the watchdog is not fed; after
-//! [`OVERRUN_SERVO_OFF`] late ticks in a row the tick switches the servo off.
+//! [`TICK_OFFSET_SAMPLES`] samples after the DMA crosses into a half.
 //!
-//! One tick: read the encoder count, the latest preload word and the index flag; run
-//! `Controller::step`; write the 20 sample pairs into the free half; set the amplifier enable;
-//! measure the tick with the DWT cycle counter; feed the IWDG if on time.
+//! One tick, in this order:
+//! 1. **Refill first**: the samples the *previous* tick computed go into the half the DMA is not
+//!    reading (found from NDTR), through the soft start (`piezo_drive::safety::soft_start`: rest
+//!    word while the enable is low, a 20 ms ramp after it goes high), and the amplifier enable is
+//!    set for them. The DMA reaches that half 18 samples (90 µs) after the tick's due time, and
+//!    the refill is the first thing the tick does, so a long `step` no longer eats the deadline
+//!    (the price: the drive follows the sensors one period later, 190 µs instead of 90 µs).
+//! 2. **Lateness**: TIM5, a free-running 32-bit counter on the same clock started with TIM6/TIM7,
+//!    gives the tick's due time; [`DeadlineMonitor`] says how late the tick started, whether the
+//!    refill finished within the 90 µs, and how many whole periods went by without a tick (a tick
+//!    a whole DMA lap late looks on time to NDTR alone). Late ticks fill a leaky bucket
+//!    ([`OVERRUN_BUCKET`]: +10 late, −1 on time, trips at 40; a missed period trips at once). A
+//!    trip drops the enable pin at once, latches the controller's `Overrun` fault (GCS error
+//!    4100, `XFT?` 6) and records the fault in no-init RAM; `SVO` clears it as any motion error.
+//! 3. **Step**: encoder count, preload word, index latch → `Controller::step`; its samples wait
+//!    for the next tick; a disabled enable in its outputs drops the pin at once.
+//! 4. **Watchdogs**: the IWDG (50 ms) and the WWDG (~1 ms, see `safety.rs`) are fed only by a
+//!    tick that was on time.
 //!
 //! Sharing the controller: the tick runs at priority 1 with interrupts enabled, so the UART,
-//! time-driver and EXTI interrupts (priority 0, all short) preempt it and no received byte waits
-//! for a control step. The UART task (thread mode) takes the controller through
-//! [`TickLock::lock`], which masks only the TIM7 interrupt for its short `execute`; the tick
-//! itself needs no lock, as nothing that touches the controller can preempt it.
+//! time-driver, EXTI and WWDG interrupts (priority 0, all short) preempt it. The UART task
+//! (thread mode) takes the controller through [`TickLock::lock`], which masks only the TIM7
+//! interrupt: read-only queries copy the controller under the lock and format outside it;
+//! commands that change it run under it (short: parse, check, set).
 
 use core::cell::UnsafeCell;
 use core::sync::atomic::{compiler_fence, AtomicBool, AtomicU32, Ordering};
@@ -30,16 +41,19 @@ use embassy_stm32::gpio::Output;
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::pac;
-use embassy_stm32::peripherals::TIM7;
+use embassy_stm32::peripherals::{TIM5, TIM7};
 use embassy_stm32::timer::low_level::Timer;
 use embassy_stm32::Peri;
-use piezo_drive::controller::{Controller, Inputs};
+use piezo_drive::controller::{Controller, FaultCode, Inputs, DAC_SAMPLES_PER_STEP};
 use piezo_drive::gcs::LoopStats;
+use piezo_drive::safety::fault_record::FaultKind;
+use piezo_drive::safety::soft_start::SoftStart;
+use piezo_drive::safety::timing::{DeadlineMonitor, LeakyBucket, OverrunSupervisor};
 
 use super::drive::Drive;
 use super::encoder::Encoder;
-use super::ring::{self, Refill};
-use super::{CORE_HZ, SAMPLE_COUNTS, TICK_COUNTS};
+use super::ring;
+use super::{AMP_REST_WORD, CORE_HZ, SAMPLE_COUNTS, SOFT_START_SAMPLES, TICK_COUNTS};
 
 /// Data shared between the TIM7 tick and thread-mode code.
 pub struct TickLock<T> {
@@ -98,25 +112,38 @@ pub static CONTROLLER: TickLock<Option<Controller>> = TickLock::new(None);
 pub static PRELOAD_WORD: AtomicU32 = AtomicU32::new(0);
 /// Ticks without a new preload sample after which the tick hands the core an invalid word
 /// (20 ms, twenty missed 1 kHz samples): a stuck ADC task becomes the core's preload-sensor fault
-/// instead of a frozen force reading, while the watchdog only watches the tick.
+/// instead of a frozen force reading, while the watchdogs only watch the tick.
 const PRELOAD_STALE_TICKS: u32 = 200;
-/// Set by the index task, taken by the next tick.
-pub static INDEX_SEEN: AtomicBool = AtomicBool::new(false);
+/// Index latch written by the EXTI handler (`encoder.rs`): the encoder count at the edge in the
+/// low 16 bits, an edge counter in the high 16.
+pub static INDEX_LATCH: AtomicU32 = AtomicU32::new(0);
+
+/// Drive parking, for the flash store (`params_flash.rs`): while `PARK_REQUEST` is set the tick
+/// keeps the enable low and writes rest words; `PARKED_TICKS` counts the ticks it has done so.
+pub static PARK_REQUEST: AtomicBool = AtomicBool::new(false);
+pub static PARKED_TICKS: AtomicU32 = AtomicU32::new(0);
 
 static STEP_CYCLES_LAST: AtomicU32 = AtomicU32::new(0);
 static STEP_CYCLES_MAX: AtomicU32 = AtomicU32::new(0);
 static OVERRUNS: AtomicU32 = AtomicU32::new(0);
 static TICKS: AtomicU32 = AtomicU32::new(0);
-/// Times the tick switched the servo off after [`OVERRUN_SERVO_OFF`] late ticks in a row.
-pub static OVERRUN_SERVO_OFFS: AtomicU32 = AtomicU32::new(0);
+/// Times the overrun bucket tripped (each one latched an `Overrun` fault).
+pub static OVERRUN_TRIPS: AtomicU32 = AtomicU32::new(0);
+/// Largest tick start latency seen, in 170 MHz counts.
+pub static LATENCY_MAX: AtomicU32 = AtomicU32::new(0);
 
-/// Late ticks in a row after which the tick switches the servo off (the controller ramps the
-/// drive to quiet): a loop that cannot keep its rate must not keep driving the motor. The IWDG
-/// (not fed by late ticks) resets the chip if even that does not bring the loop back on time.
-pub const OVERRUN_SERVO_OFF: u32 = 10;
+/// The overrun bucket: +10 per late tick, −1 per on-time tick, latches at 40: four late ticks in
+/// a row, the fifth of an alternating late/on-time pattern, or a steady one in ten trip it (see
+/// `tests/safety.rs` for the hand counts).
+pub const OVERRUN_BUCKET: LeakyBucket = LeakyBucket::new(10, 1, 40);
 
 /// The tick comes this many samples after the DMA enters a half.
 pub const TICK_OFFSET_SAMPLES: u32 = 2;
+/// TIM5 counts from the timers' start to the first tick's due time.
+const FIRST_DUE_COUNTS: u32 = TICK_OFFSET_SAMPLES * SAMPLE_COUNTS;
+/// The refill must be done before the DMA enters the half it writes: 18 samples after the due
+/// time, less one sample of margin.
+const REFILL_DEADLINE_COUNTS: u32 = (ring::HALF as u32 - TICK_OFFSET_SAMPLES - 1) * SAMPLE_COUNTS;
 
 impl TickCtx {
     /// The latest preload word, or `u16::MAX` once the ADC task has delivered nothing new for
@@ -137,6 +164,17 @@ impl TickCtx {
             packed as u16
         }
     }
+
+    /// The count latched at an index edge since the last tick, if any.
+    fn index_edge(&mut self) -> Option<u16> {
+        let packed = INDEX_LATCH.load(Ordering::Relaxed);
+        let seq = (packed >> 16) as u16;
+        if seq == self.index_seq {
+            return None;
+        }
+        self.index_seq = seq;
+        Some(packed as u16)
+    }
 }
 
 /// What only the tick touches.
@@ -144,10 +182,15 @@ pub struct TickCtx {
     pub drive: Drive,
     pub encoder: Encoder,
     pub amp_enable: Output<'static>,
-    refill: Refill,
-    late_in_a_row: u32,
+    /// Schedule, overrun bucket and latch (`piezo_drive::safety::timing`).
+    overrun: OverrunSupervisor,
+    soft: SoftStart,
+    /// The samples and enable the last step computed, for this tick's refill.
+    pending: [[u16; 2]; DAC_SAMPLES_PER_STEP],
+    pending_enable: bool,
     preload_seq: u16,
     preload_age_ticks: u32,
+    index_seq: u16,
 }
 
 /// Set up by `start` (TIM7 interrupt still off), then used by the tick alone.
@@ -171,8 +214,15 @@ pub fn install_controller(ctl: Controller) {
     let _ = CONTROLLER.lock(|c| *c = Some(ctl));
 }
 
-/// Sets up TIM7 and starts it together with the drive's sample timer and DMA.
-pub fn start(tim7: Peri<'static, TIM7>, drive: Drive, encoder: Encoder, amp_enable: Output<'static>) {
+/// Sets up TIM7 (the tick) and TIM5 (the free-running timebase) and starts both together with
+/// the drive's sample timer and DMA.
+pub fn start(
+    tim7: Peri<'static, TIM7>,
+    tim5: Peri<'static, TIM5>,
+    drive: Drive,
+    encoder: Encoder,
+    amp_enable: Output<'static>,
+) {
     let timer = Timer::new(tim7);
     let r = timer.regs_basic();
     r.cr1().modify(|w| w.set_cen(false));
@@ -186,21 +236,39 @@ pub fn start(tim7: Peri<'static, TIM7>, drive: Drive, encoder: Encoder, amp_enab
     // The timer's clock must stay on for the life of the firmware; `Timer`'s drop would stop it.
     core::mem::forget(timer);
 
+    let base = Timer::new(tim5);
+    let b = base.regs_gp32();
+    b.cr1().modify(|w| w.set_cen(false));
+    b.psc().write_value(0);
+    b.arr().write_value(u32::MAX);
+    b.cr1().modify(|w| w.set_urs(pac::timer::vals::Urs::COUNTER_ONLY));
+    b.egr().write(|w| w.set_ug(true));
+    b.sr().write(|w| w.set_uif(false));
+    b.cnt().write_value(0);
+    core::mem::forget(base);
+
     let _ = TICK.lock(|tick| {
         let ctx = tick.insert(TickCtx {
             drive,
             encoder,
             amp_enable,
-            refill: Refill::default(),
-            late_in_a_row: 0,
+            overrun: OverrunSupervisor::new(
+                DeadlineMonitor::new(FIRST_DUE_COUNTS, TICK_COUNTS, REFILL_DEADLINE_COUNTS),
+                OVERRUN_BUCKET,
+            ),
+            soft: SoftStart::new(AMP_REST_WORD, SOFT_START_SAMPLES),
+            pending: [[AMP_REST_WORD; 2]; DAC_SAMPLES_PER_STEP],
+            pending_enable: false,
             preload_seq: 0,
             preload_age_ticks: 0,
+            index_seq: (INDEX_LATCH.load(Ordering::Relaxed) >> 16) as u16,
         });
-        let preset = ring::tick_preset(TICK_COUNTS, TICK_OFFSET_SAMPLES * SAMPLE_COUNTS);
-        // Both counters start within a few cycles of each other (in one critical section); from
-        // then on they share a clock.
+        let preset = ring::tick_preset(TICK_COUNTS, FIRST_DUE_COUNTS);
+        // The three counters start within a few cycles of each other (in one critical section);
+        // from then on they share a clock.
         ctx.drive.start_with(|| {
             pac::TIM7.cnt().write(|w| w.set_cnt(preset as u16));
+            pac::TIM5.cr1().modify(|w| w.set_cen(true));
             pac::TIM7.cr1().modify(|w| w.set_cen(true));
         });
     });
@@ -211,60 +279,108 @@ pub fn start(tim7: Peri<'static, TIM7>, drive: Drive, encoder: Encoder, amp_enab
     unsafe { irq.enable() };
 }
 
+/// The free-running timebase (170 MHz, wraps every 25 s).
+fn timebase() -> u32 {
+    pac::TIM5.cnt().read()
+}
+
+fn bump(counter: &AtomicU32) {
+    counter.store(counter.load(Ordering::Relaxed).wrapping_add(1), Ordering::Relaxed);
+}
+
 #[interrupt]
 fn TIM7_DAC() {
+    let entry = timebase();
     pac::TIM7.sr().write(|w| w.set_uif(false));
     // SAFETY: this is the tick.
     let (tick, controller) = unsafe { (TICK.in_tick(), CONTROLLER.in_tick()) };
     let Some(t) = tick.as_mut() else { return };
     let start = DWT::cycle_count();
+    let timing = t.overrun.begin(entry);
 
-    let (half, slipped) = t.refill.on_tick(t.drive.dma_half());
-    // `..Default::default()` keeps this building when the protocol issue adds input fields.
+    // 1. Refill first, with what the last step computed.
+    let parked = PARK_REQUEST.load(Ordering::Relaxed);
+    let enable = t.overrun.enable(t.pending_enable, parked);
+    if !enable {
+        t.amp_enable.set_low();
+    }
+    let half = 1 - (t.drive.dma_half() & 1);
+    t.soft.apply(enable, &mut t.pending);
+    t.drive.write_half(half, &t.pending);
+    t.amp_enable.set_level(enable.into());
+    let refilled = timebase();
+    let verdict = t.overrun.judge(&timing, refilled, t.drive.dma_half() == half);
+    if parked {
+        PARKED_TICKS.store(PARKED_TICKS.load(Ordering::Relaxed).saturating_add(1), Ordering::Relaxed);
+    } else {
+        PARKED_TICKS.store(0, Ordering::Relaxed);
+    }
+
+    // 2. Lateness: the bucket's verdict, and its latched fault.
+    if timing.latency > LATENCY_MAX.load(Ordering::Relaxed) {
+        LATENCY_MAX.store(timing.latency, Ordering::Relaxed);
+    }
+    if verdict.late {
+        bump(&OVERRUNS);
+    }
+    if verdict.tripped_now {
+        t.amp_enable.set_low();
+        bump(&OVERRUN_TRIPS);
+        if let Some(c) = controller.as_mut() {
+            c.trip_external(FaultCode::Overrun);
+        }
+        super::safety::record_fault(
+            FaultKind::Overrun,
+            [
+                timing.latency,
+                timing.missed,
+                t.overrun.bucket_level(),
+                refilled.wrapping_sub(timing.due),
+                0,
+                0,
+                0,
+                0,
+            ],
+        );
+    } else if let Some(c) = controller.as_ref() {
+        // The latch clears once the host has cleared every fault (SVO).
+        t.overrun.controller_fault_active(c.fault().is_some());
+    }
+
+    // 3. The step, for the next tick's refill.
+    let index_raw = t.index_edge();
     #[allow(clippy::needless_update)]
     let inputs = Inputs {
         encoder_raw: t.encoder.raw(),
         preload_word: t.fresh_preload_word(),
-        index: INDEX_SEEN.swap(false, Ordering::Relaxed),
+        index: index_raw.is_some(),
+        index_raw,
         ..Default::default()
     };
     match controller.as_mut().map(|c| c.step(&inputs)) {
         Some(out) => {
-            t.drive.write_half(half, &out.dac);
-            t.amp_enable.set_level(out.amp_enable.into());
+            t.pending = out.dac;
+            t.pending_enable = out.amp_enable;
         }
         None => {
-            t.amp_enable.set_low();
-            t.drive.write_half_safe(half);
+            t.pending = [[AMP_REST_WORD; 2]; DAC_SAMPLES_PER_STEP];
+            t.pending_enable = false;
         }
     }
-    // The DMA already in the half just written: part of it played stale samples.
-    let late = t.drive.dma_half() == half;
+    if !t.pending_enable {
+        // A fault drops the enable now, not at the next refill.
+        t.amp_enable.set_low();
+    }
 
     let cycles = DWT::cycle_count().wrapping_sub(start);
     STEP_CYCLES_LAST.store(cycles, Ordering::Relaxed);
     if cycles > STEP_CYCLES_MAX.load(Ordering::Relaxed) {
         STEP_CYCLES_MAX.store(cycles, Ordering::Relaxed);
     }
-    TICKS.store(TICKS.load(Ordering::Relaxed).wrapping_add(1), Ordering::Relaxed);
-    if slipped || late {
-        OVERRUNS.store(OVERRUNS.load(Ordering::Relaxed).wrapping_add(1), Ordering::Relaxed);
-        t.late_in_a_row = t.late_in_a_row.saturating_add(1);
-        if t.late_in_a_row == OVERRUN_SERVO_OFF {
-            if let Some(c) = controller.as_mut() {
-                // Any motion, closed loop or not (open-loop stepping and referencing run with
-                // the servo off): servo off ramps the drive to quiet and leaves the state idle.
-                if !matches!(
-                    c.state(),
-                    piezo_drive::controller::State::Idle | piezo_drive::controller::State::Fault(_)
-                ) {
-                    let _ = c.set_servo(false);
-                    OVERRUN_SERVO_OFFS.fetch_add(1, Ordering::Relaxed);
-                }
-            }
-        }
-    } else {
-        t.late_in_a_row = 0;
-        super::safety::feed_watchdog();
+    bump(&TICKS);
+
+    // 4. Watchdogs: only an on-time tick feeds them.
+    if verdict.feed_watchdogs {
+        super::safety::feed_watchdogs();
     }
 }

@@ -26,7 +26,7 @@ use embassy_stm32::Peri;
 use piezo_drive::controller::DAC_SAMPLES_PER_STEP;
 
 use super::ring::{self, HALF, SAMPLES};
-use super::{SAFE_DAC_WORD, SAMPLE_COUNTS};
+use super::{AMP_REST_WORD, SAMPLE_COUNTS};
 
 /// The circular buffer the DMA reads. Written only by the control tick (one writer, in an
 /// interrupt, in the half the DMA is not reading) and by `force_safe` in the panic handler with
@@ -54,7 +54,7 @@ impl Drive {
         tim6: Peri<'static, TIM6>,
         dma: Peri<'static, DMA1_CH1>,
     ) -> Self {
-        let safe = ring::pack_dac([SAFE_DAC_WORD; 2]);
+        let safe = ring::pack_dac([AMP_REST_WORD; 2]);
         for i in 0..SAMPLES {
             // SAFETY: in bounds; the DMA is not running yet.
             unsafe { buffer_ptr().add(i).write_volatile(safe) };
@@ -110,14 +110,10 @@ impl Drive {
             unsafe { buffer_ptr().add(base + i).write_volatile(ring::pack_dac(*s)) };
         }
     }
-
-    pub fn write_half_safe(&mut self, half: usize) {
-        self.write_half(half, &[[SAFE_DAC_WORD; 2]; DAC_SAMPLES_PER_STEP]);
-    }
 }
 
 /// Panic/fault path, registers only (callable from the panic handler, before anything else):
-/// stop the DMA, put the safe word in the holding register; TIM6 keeps triggering, so it
+/// stop the DMA, put the amplifier's rest word in the holding register; TIM6 keeps triggering, so it
 /// reaches both outputs within one sample (5 µs). Harmless if the drive was never set up.
 pub fn force_safe() {
     if !pac::RCC.ahb2enr().read().dac1en() {
@@ -128,6 +124,6 @@ pub fn force_safe() {
         w.set_dmaen(1, false);
     });
     super::drive_dma::stop();
-    pac::DAC1.dhr12rd().write_value(pac::dac::regs::Dhr12rd(ring::pack_dac([SAFE_DAC_WORD; 2])));
+    pac::DAC1.dhr12rd().write_value(pac::dac::regs::Dhr12rd(ring::pack_dac([AMP_REST_WORD; 2])));
     pac::TIM6.cr1().modify(|w| w.set_cen(true));
 }

@@ -22,7 +22,7 @@ use embassy_stm32::Peri;
 use piezo_drive::controller::DAC_SAMPLES_PER_STEP;
 
 use super::ring::{self, HALF, SAMPLES};
-use super::{SAFE_DAC_WORD, SAMPLE_HZ};
+use super::{AMP_REST_WORD, SAMPLE_HZ};
 
 /// Two compare values per sample.
 const TRANSFERS: usize = 2 * SAMPLES;
@@ -69,7 +69,7 @@ impl Drive {
         pac::TIM1.cr1().modify(|w| w.set_cen(false));
         pac::TIM1.cnt().write(|w| w.set_cnt(0));
         let period = period();
-        let safe = ring::pwm_compare(SAFE_DAC_WORD, period);
+        let safe = ring::pwm_compare(AMP_REST_WORD, period);
         for i in 0..TRANSFERS {
             // SAFETY: in bounds; the DMA is not running yet.
             unsafe { buffer_ptr().add(i).write_volatile(safe) };
@@ -120,21 +120,17 @@ impl Drive {
             }
         }
     }
-
-    pub fn write_half_safe(&mut self, half: usize) {
-        self.write_half(half, &[[SAFE_DAC_WORD; 2]; DAC_SAMPLES_PER_STEP]);
-    }
 }
 
 /// Panic/fault path, registers only: stop the DMA requests and the DMA, set both compare values
-/// to mid-scale (the RC filters settle there). Harmless if TIM1 was never set up.
+/// to the amplifier's rest level (the RC filters settle there). Harmless if TIM1 was never set up.
 pub fn force_safe() {
     if !pac::RCC.apb2enr().read().tim1en() {
         return;
     }
     pac::TIM1.dier().modify(|w| w.set_ude(false));
     super::drive_dma::stop();
-    let safe = ring::pwm_compare(SAFE_DAC_WORD, period());
+    let safe = ring::pwm_compare(AMP_REST_WORD, period());
     pac::TIM1.ccr(0).write(|w| w.set_ccr(safe as u16));
     pac::TIM1.ccr(1).write(|w| w.set_ccr(safe as u16));
 }

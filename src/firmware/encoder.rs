@@ -1,20 +1,30 @@
 //! Quadrature encoder on TIM3 (PA6 = A, PA7 = B): embassy's `Qei` (×4 counting, 16-bit count,
 //! unwrapped by the core) plus the input filter embassy 0.4 does not expose, set through the PAC.
-//! The optional index on PB10 is watched by an EXTI task that flags it for the next tick.
+//!
+//! The optional index on PB10: EXTI line 10, rising edge, our own `EXTI15_10` handler at
+//! priority 0 (above the tick) latches TIM3's count at the edge into
+//! [`super::control::INDEX_LATCH`]; the tick hands it to the core (`Inputs::index_raw`), which
+//! references on the edge itself. (Earlier an embassy EXTI task in thread mode flagged the edge,
+//! up to a long command late.) embassy's `exti` feature is off so that the vector is ours.
 
 use core::sync::atomic::Ordering;
 
-use embassy_stm32::exti::ExtiInput;
+use embassy_stm32::gpio::{Input, Pull};
+use embassy_stm32::interrupt;
+use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::pac;
-use embassy_stm32::peripherals::{PA6, PA7, TIM3};
+use embassy_stm32::peripherals::{PA6, PA7, PB10, TIM3};
 use embassy_stm32::timer::qei::{Qei, QeiPin};
 use embassy_stm32::Peri;
 
-use super::control::INDEX_SEEN;
+use super::control::INDEX_LATCH;
 
 /// Input filter on both channels: 8 equal samples at f_DTS/2 = 85 MHz (≈ 94 ns), which rejects
 /// ringing on long encoder cables and still passes edges 2 MHz apart (50 nm counts at 100 mm/s).
 const FILTER: pac::timer::vals::FilterValue = pac::timer::vals::FilterValue::FDTS_DIV2_N8;
+/// EXTI line and port of the index (PB10: line 10, port B = 1).
+const INDEX_LINE: usize = 10;
+const INDEX_PORT_B: u8 = 1;
 
 pub struct Encoder {
     qei: Qei<'static, TIM3>,
@@ -36,11 +46,31 @@ impl Encoder {
     }
 }
 
-/// Flags every rising edge of the index for the control tick.
-#[embassy_executor::task]
-pub async fn index_task(mut index: ExtiInput<'static>) {
-    loop {
-        index.wait_for_rising_edge().await;
-        INDEX_SEEN.store(true, Ordering::Relaxed);
+/// PB10 as a pulled-down input on EXTI line 10, rising edge, interrupt at priority 0.
+pub fn start_index(pin: Peri<'static, PB10>) {
+    let input = Input::new(pin, Pull::Down);
+    // The pin stays configured for the life of the firmware.
+    core::mem::forget(input);
+    pac::SYSCFG.exticr(INDEX_LINE / 4).modify(|w| w.set_exti(INDEX_LINE % 4, INDEX_PORT_B));
+    pac::EXTI.rtsr(0).modify(|w| w.set_line(INDEX_LINE, true));
+    pac::EXTI.ftsr(0).modify(|w| w.set_line(INDEX_LINE, false));
+    pac::EXTI.pr(0).write(|w| w.set_line(INDEX_LINE, true));
+    pac::EXTI.imr(0).modify(|w| w.set_line(INDEX_LINE, true));
+    let irq = interrupt::EXTI15_10;
+    irq.set_priority(Priority::P0);
+    // SAFETY: the handler reads a timer count and writes an atomic.
+    unsafe { irq.enable() };
+}
+
+#[interrupt]
+fn EXTI15_10() {
+    // The count first: every cycle here is slider travel.
+    let count = pac::TIM3.cnt().read().cnt();
+    let pending = pac::EXTI.pr(0).read();
+    // Write 1 to clear, our line only (no other line of this vector is enabled).
+    pac::EXTI.pr(0).write(|w| w.set_line(INDEX_LINE, true));
+    if pending.line(INDEX_LINE) {
+        let seq = (INDEX_LATCH.load(Ordering::Relaxed) >> 16).wrapping_add(1) & 0xFFFF;
+        INDEX_LATCH.store((seq << 16) | u32::from(count), Ordering::Relaxed);
     }
 }

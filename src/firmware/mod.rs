@@ -58,6 +58,14 @@ pub const SAMPLE_COUNTS: u32 = CORE_HZ / SAMPLE_HZ;
 pub const TICK_COUNTS: u32 = SAMPLE_COUNTS * ring::HALF as u32;
 const _: () = assert!(CORE_HZ % SAMPLE_HZ == 0, "sample timer must divide the core clock exactly");
 const _: () = assert!(SAMPLE_HZ / ring::HALF as u32 == piezo_drive::defaults::LOOP_HZ);
-/// Mid-scale DAC word: where the core's fault ramp ends for the 0–100 V range; the panic path
-/// and the not-yet-running drive hold it.
-pub const SAFE_DAC_WORD: u16 = 2048;
+/// DAC word equal to the amplifier's output while its enable is low (0 V for the 0–100 V
+/// amplifier at `full_scale_v` = 100 V): the drive starts there and every enable ramps up from
+/// it ([`piezo_drive::safety::soft_start`]); the panic and fault paths write it too. Board-dependent: an amplifier that rests elsewhere
+/// needs its own word here.
+pub const AMP_REST_WORD: u16 = 0;
+/// Soft-start ramp from [`AMP_REST_WORD`] to the controller's output: 20 ms (4 000 samples at
+/// 200 kS/s), 50 V in 20 ms = 2.5 V/ms on the stacks.
+pub const SOFT_START_SAMPLES: u32 = SAMPLE_HZ / 50;
+/// Control ticks after the enable went low before the drive counts as parked (both buffer
+/// halves hold the rest word).
+pub const PARK_TICKS: u32 = 3;

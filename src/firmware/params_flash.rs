@@ -1,59 +1,274 @@
 //! Parameters in flash: the core's record (`piezo_drive::storage`: version, length, CRC-32,
 //! range-checked) in the last 2 KiB page of the flash, 0x0807_F800 (page 127 of bank 2 in the
-//! STM32G474RE's factory dual-bank mode, DBANK = 1). `memory.x` keeps the firmware out of it.
-//! Loaded at boot (defaults when missing or invalid); written by a task on request (`WPA`), so
-//! the UART never waits for the ~20 ms page erase. embassy 0.4 erases and programs inside a
-//! critical section, so no interrupt — not the control tick — runs for those ~20 ms: a store is
-//! therefore only carried out while the controller is idle (servo off, no motion; the protocol
-//! refuses `WPA` otherwise and this task checks again), when the DMA replays quiet samples.
+//! STM32G474RE's factory dual-bank mode, DBANK = 1). `memory.x` keeps the firmware out of it, so
+//! all code and constants live in bank 1.
 //!
-//! If the option bytes say single-bank (DBANK = 0, 4 KiB pages) the layout embassy was built for
-//! (`dual-bank`) does not match: embassy's `Flash` would panic, so the firmware skips the flash,
-//! runs on defaults and refuses `WPA` (the README says how to set DBANK back).
+//! Our own small flash driver (registers through the PAC), not embassy's: embassy 0.4 erases
+//! and programs inside a critical section, which would stop the control tick for the ~22 ms of
+//! a page erase while the DMA loops one buffer into the amplifier, and would trip the 1 ms
+//! window watchdog. Bank 2 is read-while-write capable: erasing or programming it does not stall
+//! instruction fetches from bank 1, so the erase runs with interrupts on and the task polls the
+//! busy flag between short sleeps. On top of that, a store is made only with the drive parked:
+//! the controller idle (servo off, no motion; the protocol refuses `WPA` otherwise and this task
+//! checks again), the amplifier enable low and both buffer halves at the rest word (the tick
+//! does this on [`super::control::PARK_REQUEST`]); the enable comes back through the soft start.
+//!
+//! Reading at boot: a power cut during a store can leave a torn page whose words carry a double
+//! ECC error, which raises an NMI on the read. The NMI handler (`safety.rs`) asks
+//! [`ecc_error_while_reading`] whether the error lies in this page during a read; if so it clears
+//! the flag and returns, the read reports [`ReadError::Ecc`] and the boot code erases the page
+//! and runs on defaults. The independent watchdog is already running by then.
+//!
+//! If the option bytes say single-bank (DBANK = 0, 4 KiB pages) the layout does not match: the
+//! firmware skips the flash, runs on defaults and refuses `WPA` (the README says how to set
+//! DBANK back).
 
-use core::sync::atomic::{AtomicU8, Ordering};
+use core::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 
-use embassy_stm32::flash::{Blocking, Flash, WRITE_SIZE};
 use embassy_stm32::pac;
 use embassy_stm32::peripherals::FLASH;
 use embassy_stm32::Peri;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::signal::Signal;
+use embassy_time::{Duration, Timer};
 use piezo_drive::controller::ControllerConfig;
+use piezo_drive::safety::flash_ecc::ecc_in_param_page;
 use piezo_drive::storage::{self, StorageError, RECORD_LEN};
+
+use super::control::{PARKED_TICKS, PARK_REQUEST};
 
 /// Offset of the parameter page from the start of flash (0x0800_0000).
 pub const PARAM_OFFSET: u32 = 0x7_F800;
 pub const PARAM_PAGE_SIZE: u32 = 2048;
-/// The record padded to the flash write unit (8 bytes on the G4).
+const FLASH_BASE: u32 = 0x0800_0000;
+/// Bank 2 starts half-way through the 512 KiB in dual-bank mode.
+const BANK2_OFFSET: u32 = 0x4_0000;
+/// The page within bank 2 (erase page number, PNB with BKER = 1).
+const PARAM_PAGE_IN_BANK: u8 = ((PARAM_OFFSET - BANK2_OFFSET) / PARAM_PAGE_SIZE) as u8;
+/// Flash write unit (a double word).
+const WRITE_SIZE: usize = 8;
+/// The record padded to the write unit.
 const PADDED_LEN: usize = RECORD_LEN.div_ceil(WRITE_SIZE) * WRITE_SIZE;
+/// FLASH_SR error flags (OPERR, PROGERR, WRPERR, PGAERR, SIZERR, PGSERR, MISERR, FASTERR, RDERR,
+/// OPTVERR) and EOP: all write-1-to-clear.
+const SR_ERRORS: u32 = 0xC3FA;
+const SR_EOP: u32 = 0x1;
+/// Longest wait for the erase (datasheet: 22 ms typical per page) and for parking the drive.
+const ERASE_TIMEOUT: Duration = Duration::from_millis(100);
+const PARK_TIMEOUT: Duration = Duration::from_millis(20);
 
 static REQUEST: Signal<CriticalSectionRawMutex, [u8; RECORD_LEN]> = Signal::new();
 
 /// Last store: 0 none yet, 1 queued, 2 written and verified, 3 failed, 4 flash unavailable.
 pub static STORE_STATE: AtomicU8 = AtomicU8::new(0);
 
-/// The flash, when the option bytes match the layout embassy was built for.
-pub fn open(flash: Peri<'static, FLASH>) -> Option<Flash<'static, Blocking>> {
+/// A read of the parameter page is under way / hit a double ECC error (set by the NMI).
+static READING: AtomicBool = AtomicBool::new(false);
+static ECC_HIT: AtomicBool = AtomicBool::new(false);
+
+/// For the NMI handler: whether a double ECC error at (`bank2`, `addr_in_bank`) is one of ours —
+/// in the parameter page while it is being read — and so survivable. Records it for the reader.
+pub fn ecc_error_while_reading(bank2: bool, addr_in_bank: u32) -> bool {
+    let ours = READING.load(Ordering::Relaxed)
+        && ecc_in_param_page(bank2, addr_in_bank, PARAM_OFFSET, BANK2_OFFSET, PARAM_PAGE_SIZE);
+    if ours {
+        ECC_HIT.store(true, Ordering::Relaxed);
+    }
+    ours
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
+pub enum FlashError {
+    /// FLASH_SR error flags after the operation.
+    Status(u32),
+    Timeout,
+    /// The drive did not park (the tick is not running?).
+    NotParked,
+    /// The controller is not idle.
+    NotIdle,
+    Verify,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ReadError {
+    /// A double ECC error in the page (a torn write).
+    Ecc,
+}
+
+/// The parameter page.
+pub struct ParamFlash {
+    _flash: Peri<'static, FLASH>,
+}
+
+/// The flash, when the option bytes match the layout (dual bank).
+pub fn open(flash: Peri<'static, FLASH>) -> Option<ParamFlash> {
     if pac::FLASH.optr().read().dbank() {
-        Some(Flash::new_blocking(flash))
+        Some(ParamFlash { _flash: flash })
     } else {
         STORE_STATE.store(4, Ordering::Relaxed);
         None
     }
 }
 
-/// Boot parameters: the stored record if valid, else `defaults` (and why).
+fn busy() -> bool {
+    pac::FLASH.sr().read().bsy()
+}
+
+fn clear_status() {
+    pac::FLASH.sr().write_value(pac::flash::regs::Sr(SR_ERRORS | SR_EOP));
+}
+
+fn status_errors() -> u32 {
+    pac::FLASH.sr().read().0 & SR_ERRORS
+}
+
+fn unlock() {
+    if pac::FLASH.cr().read().lock() {
+        pac::FLASH.keyr().write_value(0x4567_0123);
+        pac::FLASH.keyr().write_value(0xCDEF_89AB);
+    }
+}
+
+fn lock() {
+    pac::FLASH.cr().modify(|w| {
+        w.set_per(false);
+        w.set_pg(false);
+        w.set_lock(true);
+    });
+}
+
+/// Drops the flash data cache's lines (they may hold the page as it was before a store).
+fn flush_data_cache() {
+    pac::FLASH.acr().modify(|w| w.set_dcen(false));
+    pac::FLASH.acr().modify(|w| w.set_dcrst(true));
+    pac::FLASH.acr().modify(|w| w.set_dcrst(false));
+    pac::FLASH.acr().modify(|w| w.set_dcen(true));
+}
+
+impl ParamFlash {
+    /// Reads the start of the page. A double ECC error in it is reported, not fatal.
+    pub fn read(&mut self, buf: &mut [u8]) -> Result<(), ReadError> {
+        ECC_HIT.store(false, Ordering::Relaxed);
+        READING.store(true, Ordering::SeqCst);
+        let base = (FLASH_BASE + PARAM_OFFSET) as *const u8;
+        for (i, b) in buf.iter_mut().take(PARAM_PAGE_SIZE as usize).enumerate() {
+            // SAFETY: inside the 2 KiB parameter page, memory-mapped flash.
+            *b = unsafe { base.add(i).read_volatile() };
+        }
+        cortex_m::asm::dsb();
+        READING.store(false, Ordering::SeqCst);
+        if ECC_HIT.load(Ordering::Relaxed) {
+            Err(ReadError::Ecc)
+        } else {
+            Ok(())
+        }
+    }
+
+    fn start_erase(&mut self) {
+        clear_status();
+        unlock();
+        pac::FLASH.cr().modify(|w| {
+            w.set_pg(false);
+            w.set_per(true);
+            w.set_bker(true);
+            w.set_pnb(PARAM_PAGE_IN_BANK);
+        });
+        pac::FLASH.cr().modify(|w| w.set_strt(true));
+    }
+
+    fn finish(&mut self) -> Result<(), FlashError> {
+        let errors = status_errors();
+        lock();
+        flush_data_cache();
+        if errors != 0 {
+            Err(FlashError::Status(errors))
+        } else {
+            Ok(())
+        }
+    }
+
+    /// Erases the page, busy-waiting (boot only, before the tick and the WWDG run; the IWDG
+    /// allows 50 ms and the erase takes ~22 ms).
+    pub fn erase_blocking(&mut self) -> Result<(), FlashError> {
+        while busy() {}
+        self.start_erase();
+        while busy() {}
+        self.finish()
+    }
+
+    /// Erases the page without blocking anything: polls the busy flag between 1 ms sleeps.
+    async fn erase(&mut self) -> Result<(), FlashError> {
+        let mut waited = Duration::from_ticks(0);
+        while busy() {
+            Timer::after_millis(1).await;
+        }
+        self.start_erase();
+        while busy() {
+            if waited > ERASE_TIMEOUT {
+                lock();
+                return Err(FlashError::Timeout);
+            }
+            Timer::after_millis(1).await;
+            waited += Duration::from_millis(1);
+        }
+        self.finish()
+    }
+
+    /// Programs `data` (a multiple of 8 bytes) at the start of the erased page, one double word
+    /// at a time (~85 µs each), yielding between them.
+    async fn program(&mut self, data: &[u8; PADDED_LEN]) -> Result<(), FlashError> {
+        clear_status();
+        unlock();
+        pac::FLASH.cr().modify(|w| {
+            w.set_per(false);
+            w.set_pg(true);
+        });
+        let base = (FLASH_BASE + PARAM_OFFSET) as *mut u32;
+        let mut words = [u32::MAX; PADDED_LEN / 4];
+        for (w, c) in words.iter_mut().zip(data.chunks_exact(4)) {
+            *w = u32::from_le_bytes(<[u8; 4]>::try_from(c).unwrap_or([0xFF; 4]));
+        }
+        for (i, pair) in words.chunks_exact(2).enumerate() {
+            let &[lo, hi] = pair else { break };
+            // SAFETY: inside the parameter page, word-aligned; PG is set, so these writes
+            // program the double word (first word, then second, back to back).
+            unsafe {
+                base.add(2 * i).write_volatile(lo);
+                base.add(2 * i + 1).write_volatile(hi);
+            }
+            cortex_m::asm::dsb();
+            while busy() {
+                Timer::after_micros(50).await;
+            }
+            if status_errors() != 0 {
+                break;
+            }
+        }
+        self.finish()
+    }
+}
+
+/// Boot parameters: the stored record if valid, else `defaults` (and why). A torn page (double
+/// ECC error) is erased so the next boot reads it cleanly; `feed` keeps the watchdog quiet.
 pub fn load(
-    flash: Option<&mut Flash<'static, Blocking>>,
+    flash: Option<&mut ParamFlash>,
     defaults: &ControllerConfig,
+    feed: &mut dyn FnMut(),
 ) -> (ControllerConfig, Result<(), StorageError>) {
+    let Some(flash) = flash else { return (*defaults, Err(StorageError::NoRecord)) };
     let mut bytes = [0u8; RECORD_LEN];
-    let read = match flash {
-        Some(f) => f.blocking_read(PARAM_OFFSET, &mut bytes).is_ok(),
-        None => false,
-    };
-    if !read {
+    if flash.read(&mut bytes) == Err(ReadError::Ecc) {
+        defmt::error!("parameter page: double ECC error (torn write?): erasing it, running on defaults");
+        super::safety::record_fault(
+            piezo_drive::safety::fault_record::FaultKind::FlashEcc,
+            [pac::FLASH.eccr().read().0, 0, 0, 0, 0, 0, 0, 0],
+        );
+        feed();
+        match flash.erase_blocking() {
+            Ok(()) => defmt::info!("parameter page erased"),
+            Err(e) => defmt::error!("parameter page erase failed: {}", e),
+        }
+        feed();
         return (*defaults, Err(StorageError::NoRecord));
     }
     match storage::decode(&bytes, defaults) {
@@ -73,36 +288,69 @@ pub fn request_store(cfg: &ControllerConfig) -> bool {
     true
 }
 
+fn controller_idle() -> bool {
+    super::control::CONTROLLER
+        .lock(|c| c.as_ref().is_some_and(|c| c.state() == piezo_drive::controller::State::Idle))
+        .unwrap_or(false)
+}
+
+/// Parks the drive (enable low, rest words in both halves) and waits until the tick confirms.
+async fn park() -> Result<(), FlashError> {
+    PARK_REQUEST.store(true, Ordering::SeqCst);
+    let mut waited = Duration::from_ticks(0);
+    while PARKED_TICKS.load(Ordering::Relaxed) < super::PARK_TICKS {
+        if waited > PARK_TIMEOUT {
+            return Err(FlashError::NotParked);
+        }
+        Timer::after_micros(200).await;
+        waited += Duration::from_micros(200);
+    }
+    Ok(())
+}
+
+async fn store(
+    flash: &mut ParamFlash,
+    record: &[u8; RECORD_LEN],
+    defaults: &ControllerConfig,
+) -> Result<(), FlashError> {
+    if !controller_idle() {
+        return Err(FlashError::NotIdle);
+    }
+    park().await?;
+    // Idle still (a command may have come in while parking).
+    if !controller_idle() {
+        return Err(FlashError::NotIdle);
+    }
+    let mut padded = [0xFFu8; PADDED_LEN];
+    for (d, s) in padded.iter_mut().zip(record.iter()) {
+        *d = *s;
+    }
+    flash.erase().await?;
+    flash.program(&padded).await?;
+    let mut back = [0u8; RECORD_LEN];
+    let read = flash.read(&mut back);
+    if read.is_ok() && back == *record && storage::decode(&back, defaults).is_ok() {
+        Ok(())
+    } else {
+        Err(FlashError::Verify)
+    }
+}
+
 #[embassy_executor::task]
-pub async fn flash_task(mut flash: Flash<'static, Blocking>, defaults: ControllerConfig) {
+pub async fn flash_task(mut flash: ParamFlash, defaults: ControllerConfig) {
     loop {
         let record = REQUEST.wait().await;
-        let idle = super::control::CONTROLLER
-            .lock(|c| c.as_ref().is_some_and(|c| c.state() == piezo_drive::controller::State::Idle))
-            .unwrap_or(false);
-        if !idle {
-            defmt::error!("parameter store refused: the controller is not idle (servo off first)");
-            STORE_STATE.store(3, Ordering::Relaxed);
-            continue;
-        }
-        let mut padded = [0xFFu8; PADDED_LEN];
-        for (d, s) in padded.iter_mut().zip(record.iter()) {
-            *d = *s;
-        }
-        let written = flash
-            .blocking_erase(PARAM_OFFSET, PARAM_OFFSET + PARAM_PAGE_SIZE)
-            .and_then(|()| flash.blocking_write(PARAM_OFFSET, &padded));
-        let mut back = [0u8; RECORD_LEN];
-        let verified = written.is_ok()
-            && flash.blocking_read(PARAM_OFFSET, &mut back).is_ok()
-            && back == record
-            && storage::decode(&back, &defaults).is_ok();
-        if verified {
-            defmt::info!("parameters stored at 0x{:08x}", 0x0800_0000 + PARAM_OFFSET);
-            STORE_STATE.store(2, Ordering::Relaxed);
-        } else {
-            defmt::error!("parameter store failed: {}", written);
-            STORE_STATE.store(3, Ordering::Relaxed);
+        let result = store(&mut flash, &record, &defaults).await;
+        PARK_REQUEST.store(false, Ordering::SeqCst);
+        match result {
+            Ok(()) => {
+                defmt::info!("parameters stored at 0x{:08x}", FLASH_BASE + PARAM_OFFSET);
+                STORE_STATE.store(2, Ordering::Relaxed);
+            }
+            Err(e) => {
+                defmt::error!("parameter store failed: {}", e);
+                STORE_STATE.store(3, Ordering::Relaxed);
+            }
         }
     }
 }

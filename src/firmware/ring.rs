@@ -24,12 +24,16 @@ pub fn dma_half(remaining: u16, total: u16) -> usize {
 }
 
 /// Remembers which half the previous tick wrote, so a tick that finds the DMA in the same half
-/// as last time (a whole half period slipped) is counted as an overrun.
+/// as last time (a whole half period slipped) is counted as an overrun. The firmware now measures
+/// lateness on the TIM5 timebase (`piezo_drive::safety::timing`), which also sees whole laps;
+/// this stays as host-tested bookkeeping.
+#[cfg_attr(target_os = "none", allow(dead_code))]
 #[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
 pub struct Refill {
     last_written: Option<usize>,
 }
 
+#[cfg_attr(target_os = "none", allow(dead_code))]
 impl Refill {
     /// For the DMA in `dma_half_now`: the half to refill (the other one) and whether this tick is
     /// late (it would refill the same half as the previous tick).
@@ -59,7 +63,8 @@ pub fn pwm_compare(word: u16, period: u32) -> u32 {
 /// Counter preset for the tick timer (period `tick_counts`) so that its first update comes
 /// `offset_counts` after both timers start together (0 < offset ≤ tick_counts).
 pub fn tick_preset(tick_counts: u32, offset_counts: u32) -> u32 {
-    tick_counts - offset_counts.clamp(1, tick_counts)
+    // `max`/`min` rather than `clamp`, which asserts 1 ≤ tick_counts (a panic path).
+    tick_counts.saturating_sub(offset_counts.max(1).min(tick_counts))
 }
 
 #[cfg(test)]

@@ -1,25 +1,44 @@
 //! Safe state of the drive: the amplifier enable (PA10, active high; the amplifier input needs
 //! an external pull-down so it is off while the pin floats in reset) goes low and the drive
-//! outputs go to mid-scale
-//! - on a controller fault: `Outputs::amp_enable == false` (see `control.rs`);
+//! outputs go to the amplifier's rest word
+//! - on a controller fault: `Outputs::amp_enable == false`, which drops the pin in the same tick
+//!   (see `control.rs`);
+//! - on a control-loop overrun (leaky bucket on the tick's measured lateness, `control.rs`): the
+//!   pin drops at once and the controller latches its `Overrun` fault;
 //! - on panic: our `#[panic_handler]` writes GPIOA and the drive registers through the PAC before
-//!   anything else, then logs over defmt and waits for the watchdog to reset the chip;
-//! - on HardFault, NMI or an unexpected interrupt: the same register writes, then a wait for the
-//!   watchdog (cortex-m-rt's default handlers would spin with the drive running);
-//! - when the independent watchdog fires: the reset puts every pin in its reset state (the enable
-//!   pin floats → pull-down → amplifier off; DAC off), and the next boot reports the IWDG reset.
+//!   anything else, records the fault, logs it over defmt and waits for a watchdog reset;
+//! - on HardFault (registers dumped into the fault record and the log), NMI (a flash double-ECC
+//!   error on the parameter page while it is read at boot is survivable: see `params_flash.rs`)
+//!   or an unexpected interrupt: the same register writes, then a wait for the watchdogs;
+//! - on the window watchdog's early warning (the tick stopped feeding it for ~1 ms): the same,
+//!   from its interrupt, and the WWDG resets the chip one count (24 µs) later;
+//! - when the independent watchdog fires (50 ms): the reset puts every pin in its reset state
+//!   (the enable pin floats → pull-down → amplifier off; DAC off).
 //!
-//! The IWDG (50 ms) is fed only by a control tick that ran on time (`control.rs`): a stopped,
-//! stuck or persistently late loop resets the chip.
+//! Both watchdogs are fed only by a control tick that ran on time (`control.rs`). The last fault
+//! survives the reset in a no-init RAM record (magic + CRC-32, `piezo_drive::safety::fault_record`)
+//! and is logged at the next boot.
 
+use core::mem::MaybeUninit;
+
+use cortex_m::peripheral::SCB;
+use embassy_stm32::interrupt;
+use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::pac;
+use piezo_drive::safety::fault_record::{self, FaultKind, FaultRecord, DETAIL_WORDS, RECORD_WORDS};
+use piezo_drive::safety::watchdog;
 
 /// Amplifier enable: PA10.
 const AMP_EN_PORT: pac::gpio::Gpio = pac::GPIOA;
 const AMP_EN_PIN: usize = 10;
 
-/// Watchdog timeout.
+/// Independent watchdog timeout.
 pub const WATCHDOG_TIMEOUT_US: u32 = 50_000;
+/// Window watchdog: early warning this long after the last feed (rounded up to whole counts of
+/// 24.1 µs: 42 counts, 1.012 ms; the reset follows one count later).
+pub const WINDOW_WATCHDOG_US: u32 = 1_000;
+/// APB1 clock of the WWDG (the APB1 prescaler is 1).
+const PCLK1_HZ: u32 = super::CORE_HZ;
 
 /// Drive off through registers only; usable from any context, any time.
 pub fn force_safe() {
@@ -28,8 +47,66 @@ pub fn force_safe() {
 }
 
 /// Reloads the IWDG (a no-op until the watchdog is started).
-pub fn feed_watchdog() {
+pub fn feed_independent_watchdog() {
     pac::IWDG.kr().write(|w| w.set_key(pac::iwdg::vals::Key::RESET));
+}
+
+static mut WWDG_RELOAD: u8 = watchdog::MAX_COUNT;
+
+/// Reloads both watchdogs (the WWDG only once started).
+pub fn feed_watchdogs() {
+    feed_independent_watchdog();
+    if pac::RCC.apb1enr1().read().wwdgen() {
+        // SAFETY: written once by `start_window_watchdog` before the WWDG is enabled.
+        let t = unsafe { core::ptr::addr_of!(WWDG_RELOAD).read_volatile() };
+        pac::WWDG.cr().write(|w| {
+            w.set_t(t);
+            w.set_wdga(true);
+        });
+    }
+}
+
+/// Starts the window watchdog: no window (W = 0x7F, a feed is welcome any time), early-warning
+/// interrupt at priority 0 (above the tick's 1). Once started it cannot be stopped: call it only
+/// with the control tick running, and keep every critical section far below a millisecond (the
+/// flash store does not block: `params_flash.rs`).
+pub fn start_window_watchdog() {
+    let reload = watchdog::reload_for(PCLK1_HZ, 0, WINDOW_WATCHDOG_US).unwrap_or(watchdog::MAX_COUNT);
+    // SAFETY: thread mode, before the WWDG runs: nothing reads it concurrently yet.
+    unsafe { core::ptr::addr_of_mut!(WWDG_RELOAD).write_volatile(reload) };
+    pac::RCC.apb1enr1().modify(|w| w.set_wwdgen(true));
+    // The enable takes effect after a couple of bus cycles.
+    let _ = pac::RCC.apb1enr1().read();
+    pac::WWDG.cfr().write(|w| {
+        w.set_w(watchdog::MAX_COUNT);
+        w.set_wdgtb(pac::wwdg::vals::Wdgtb::DIV1);
+        w.set_ewi(true);
+    });
+    pac::WWDG.sr().write(|w| w.set_ewif(false));
+    let irq = interrupt::WWDG;
+    irq.set_priority(Priority::P0);
+    // SAFETY: the handler only writes registers and the fault record.
+    unsafe { irq.enable() };
+    pac::WWDG.cr().write(|w| {
+        w.set_t(reload);
+        w.set_wdga(true);
+    });
+    defmt::info!(
+        "window watchdog on: early warning {} counts of {} ns after a feed",
+        reload - watchdog::EWI_COUNT,
+        watchdog::count_ns(PCLK1_HZ, 0)
+    );
+}
+
+#[interrupt]
+fn WWDG() {
+    force_safe();
+    pac::WWDG.sr().write(|w| w.set_ewif(false));
+    record_fault(FaultKind::WindowWatchdog, [super::control::ticks(), 0, 0, 0, 0, 0, 0, 0]);
+    // The reset follows within one counter step (24 µs); no logging, no feeding.
+    loop {
+        force_safe();
+    }
 }
 
 /// Why the chip last reset, read from RCC_CSR (then cleared).
@@ -60,19 +137,86 @@ pub fn take_reset_cause() -> ResetCause {
     cause
 }
 
-/// While a debugger halts the core, freeze the watchdog and the drive/tick timers, so a
-/// breakpoint neither resets the chip nor leaves the DMA looping one buffer into the amplifier.
+/// While a debugger halts the core, freeze both watchdogs and the drive/tick/timebase timers, so
+/// a breakpoint neither resets the chip nor leaves the DMA looping one buffer into the amplifier.
 pub fn freeze_on_debug_halt() {
     pac::DBGMCU.apb1lfzr().modify(|w| {
         w.set_iwdg(true);
+        w.set_wwdg(true);
+        w.set_tim5(true);
         w.set_tim6(true);
         w.set_tim7(true);
     });
     pac::DBGMCU.apb2fzr().modify(|w| w.set_tim1(true));
 }
 
+// ---- the last fault, across a reset ----
+
+/// Not initialised by the startup code (cortex-m-rt's `.uninit` section), so a reset keeps it.
+#[link_section = ".uninit.FAULT_RECORD"]
+static mut FAULT_RECORD: MaybeUninit<[u32; RECORD_WORDS]> = MaybeUninit::uninit();
+
+fn record_ptr() -> *mut u32 {
+    core::ptr::addr_of_mut!(FAULT_RECORD).cast::<u32>()
+}
+
+/// Stores a fault record (any context; the last writer wins).
+pub fn record_fault(kind: FaultKind, detail: [u32; DETAIL_WORDS]) {
+    let words =
+        fault_record::encode(&FaultRecord { kind, boots_seen: 0, tick: super::control::ticks(), detail });
+    for (i, w) in words.iter().enumerate() {
+        // SAFETY: i < RECORD_WORDS; plain RAM words, written volatile so a reset right after
+        // finds them.
+        unsafe { record_ptr().add(i).write_volatile(*w) };
+    }
+}
+
+/// The record left before the last reset, if any (random RAM after a power-up does not decode);
+/// the record stays, with its boot count raised, so a reset loop shows how often it was seen.
+pub fn take_last_fault() -> Option<FaultRecord> {
+    let mut words = [0u32; RECORD_WORDS];
+    for (i, w) in words.iter_mut().enumerate() {
+        // SAFETY: i < RECORD_WORDS; any bit pattern is a valid u32.
+        *w = unsafe { record_ptr().add(i).read_volatile() };
+    }
+    let mut r = fault_record::decode(&words)?;
+    r.boots_seen = r.boots_seen.saturating_add(1);
+    for (i, w) in fault_record::encode(&r).iter().enumerate() {
+        // SAFETY: as above.
+        unsafe { record_ptr().add(i).write_volatile(*w) };
+    }
+    Some(r)
+}
+
+// ---- exception handlers ----
+
 #[cortex_m_rt::exception]
-unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
+unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
+    force_safe();
+    // SAFETY: read-only access to the fault status registers.
+    let scb = unsafe { &*SCB::PTR };
+    let detail = [
+        frame.pc(),
+        frame.lr(),
+        frame.xpsr(),
+        scb.cfsr.read(),
+        scb.hfsr.read(),
+        scb.mmfar.read(),
+        scb.bfar.read(),
+        frame as *const _ as u32,
+    ];
+    record_fault(FaultKind::HardFault, detail);
+    defmt::error!(
+        "HardFault: pc {=u32:08x} lr {=u32:08x} xpsr {=u32:08x} cfsr {=u32:08x} hfsr {=u32:08x} mmfar {=u32:08x} bfar {=u32:08x} sp {=u32:08x}",
+        detail[0],
+        detail[1],
+        detail[2],
+        detail[3],
+        detail[4],
+        detail[5],
+        detail[6],
+        detail[7]
+    );
     loop {
         force_safe();
     }
@@ -80,14 +224,30 @@ unsafe fn HardFault(_frame: &cortex_m_rt::ExceptionFrame) -> ! {
 
 #[cortex_m_rt::exception]
 unsafe fn NonMaskableInt() {
-    // E.g. a double ECC error reading flash: nothing here can be trusted to continue.
+    let eccr = pac::FLASH.eccr().read();
+    if eccr.eccd() {
+        // Write 1 to clear the double-error flag (writing 0 leaves the correction flag).
+        let mut clear = eccr;
+        clear.set_eccc(false);
+        clear.set_eccd(true);
+        pac::FLASH.eccr().write_value(clear);
+        if super::params_flash::ecc_error_while_reading(eccr.bk_ecc(), eccr.addr_ecc()) {
+            // A torn parameter page: the reader treats the page as absent and erases it.
+            return;
+        }
+    }
+    // Anything else (ECC error in code or constants, the clock security system): not survivable.
+    force_safe();
+    record_fault(FaultKind::Nmi, [eccr.0, pac::RCC.cifr().read().0, 0, 0, 0, 0, 0, 0]);
     loop {
         force_safe();
     }
 }
 
 #[cortex_m_rt::exception]
-unsafe fn DefaultHandler(_irqn: i16) {
+unsafe fn DefaultHandler(irqn: i16) {
+    force_safe();
+    record_fault(FaultKind::UnexpectedInterrupt, [irqn as u32, 0, 0, 0, 0, 0, 0, 0]);
     loop {
         force_safe();
     }
@@ -97,8 +257,10 @@ unsafe fn DefaultHandler(_irqn: i16) {
 fn panic(info: &core::panic::PanicInfo) -> ! {
     cortex_m::interrupt::disable();
     force_safe();
+    let line = info.location().map_or(0, |l| l.line());
+    record_fault(FaultKind::Panic, [line, 0, 0, 0, 0, 0, 0, 0]);
     defmt::error!("panic: {}", defmt::Display2Format(info));
-    // Not fed any more: the IWDG resets the chip within its timeout (if it was started).
+    // Not fed any more: the watchdogs reset the chip (if they were started).
     loop {
         force_safe();
         cortex_m::asm::nop();

@@ -11,7 +11,7 @@
 pub mod num;
 pub mod params;
 
-use crate::controller::{validate_settings, CommandError, Controller, ControllerConfig, State};
+use crate::controller::{validate_settings, CommandError, Controller, ControllerConfig, FaultCode, State};
 use num::{
     parse_decimal, parse_int, write_f32, write_fixed, write_general, write_i64, write_scaled, write_u64,
     Decimal,
@@ -67,6 +67,9 @@ pub mod error {
     pub const CONTROLLER_BUSY: i32 = 1005;
     pub const MOTION_ERROR: i32 = 1024;
     pub const FLASH_PROGRAM_FAILED: i32 = 4001;
+    /// Extension: the control loop missed its deadline; the board disabled the amplifier and
+    /// the controller is in fault (`XFT?` says 6). Cleared like a motion error (`SVO`).
+    pub const CONTROL_LOOP_OVERRUN: i32 = 4100;
 }
 
 type Line = heapless::Vec<u8, LINE_CAPACITY>;
@@ -344,6 +347,40 @@ impl Gcs {
         self.overflow = false;
     }
 
+    /// Whether `pending` only reads the controller: such a command may run on a copy of the
+    /// controller (see [`Controller`]'s `Clone`) taken in a short critical section, so the
+    /// control tick is never held off while it formats its reply. The queries (`…?`) and the
+    /// single-byte status requests #5 and #7 read; every other command (#24 stops) writes, as
+    /// does anything that is not a known command (it only latches an error, which lives here,
+    /// not in the controller, so running it on a copy would be harmless too).
+    pub fn is_read_only(pending: &Pending) -> bool {
+        match pending {
+            Pending::Byte(b) => *b == 0x05 || *b == 0x07,
+            Pending::TooLong => true,
+            Pending::Line(line) => {
+                let Some(cmd) = line.split(|&b| is_space(b)).find(|t| !t.is_empty()) else {
+                    return true; // empty line
+                };
+                COMMANDS.iter().any(|c| {
+                    c.0.as_bytes().eq_ignore_ascii_case(cmd) && !c.0.starts_with('#') && c.0.ends_with('?')
+                })
+            }
+        }
+    }
+
+    /// Whether `pending` changes nothing but the controller's settings (`SPA`, `VEL`, `ACC`,
+    /// `DEC`): the settings change only through commands, so such a command can run on a copy of
+    /// the controller (parsing, range checks, the trial `validate_settings`: up to ~15 000
+    /// instructions for a full `SPA` line on the Cortex-M4) and the board then only applies the
+    /// copy's settings to the real controller with [`Controller::set_config`] if they differ.
+    pub fn is_settings_only(pending: &Pending) -> bool {
+        let Pending::Line(line) = pending else { return false };
+        let Some(cmd) = line.split(|&b| is_space(b)).find(|t| !t.is_empty()) else {
+            return false;
+        };
+        ["SPA", "VEL", "ACC", "DEC"].iter().any(|n| n.as_bytes().eq_ignore_ascii_case(cmd))
+    }
+
     /// The latched error (without clearing it).
     pub fn latched_error(&self) -> i32 {
         self.error
@@ -360,7 +397,11 @@ impl Gcs {
         // Errors the controller ran into on its own since the last command.
         if ctl.fault_count() != self.seen_faults {
             self.seen_faults = ctl.fault_count();
-            self.error = error::MOTION_ERROR;
+            self.error = if ctl.fault() == Some(FaultCode::Overrun) {
+                error::CONTROL_LOOP_OVERRUN
+            } else {
+                error::MOTION_ERROR
+            };
         }
         if ctl.reference_failure_count() != self.seen_reference_failures {
             self.seen_reference_failures = ctl.reference_failure_count();

@@ -1,0 +1,63 @@
+//! Soft start of the amplifier: while its enable is low the amplifier's output sits at its rest
+//! level (0 V for a 0–100 V amplifier), but the controller's quiet output is mid-scale (50 V).
+//! Enabling it there would step the stacks by 50 V. [`SoftStart`] sits between the controller's
+//! DAC words and the drive buffer: while the enable is low it holds every sample at the rest word;
+//! once the enable goes high it blends from the rest word to the controller's words over a fixed
+//! number of samples, linearly, and then passes them through unchanged. Every time the enable
+//! drops it starts over.
+
+/// The blend from the amplifier's rest word to the controller's output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SoftStart {
+    rest: u16,
+    ramp_samples: u32,
+    done_samples: u32,
+}
+
+impl SoftStart {
+    /// `rest`: DAC word equal to the amplifier's output while disabled; `ramp_samples`: length of
+    /// the ramp (0 = no ramp).
+    pub const fn new(rest: u16, ramp_samples: u32) -> Self {
+        SoftStart { rest, ramp_samples, done_samples: 0 }
+    }
+
+    /// Applies the enable state of this period to its samples (in place).
+    pub fn apply(&mut self, enable: bool, samples: &mut [[u16; 2]]) {
+        if !enable {
+            self.done_samples = 0;
+            for s in samples.iter_mut() {
+                *s = [self.rest; 2];
+            }
+            return;
+        }
+        for s in samples.iter_mut() {
+            if self.done_samples >= self.ramp_samples {
+                return;
+            }
+            for w in s.iter_mut() {
+                *w = blend(self.rest, *w, self.done_samples, self.ramp_samples);
+            }
+            self.done_samples += 1;
+        }
+    }
+
+    /// The ramp is over: samples pass unchanged.
+    pub fn done(&self) -> bool {
+        self.done_samples >= self.ramp_samples
+    }
+
+    pub fn rest(&self) -> u16 {
+        self.rest
+    }
+}
+
+/// `rest + (word − rest) · k / n`, rounded toward `rest` (integer arithmetic, no overflow for
+/// 16-bit words and any `n`).
+fn blend(rest: u16, word: u16, k: u32, n: u32) -> u16 {
+    if n == 0 || k >= n {
+        return word;
+    }
+    let d = i64::from(word) - i64::from(rest);
+    let v = i64::from(rest) + (d * i64::from(k)).checked_div(i64::from(n)).unwrap_or(0);
+    v.clamp(0, i64::from(u16::MAX)) as u16
+}
