@@ -148,10 +148,10 @@ impl PerVolt {
         let load: f32 = load_n.to_num();
         // Falling in voltage: load − thrust(v).
         let excess = |v: f32| {
-            load - self.point(preload_n, Fx::saturating_from_num(v)).thrust_n(speed_mm_s).to_num::<f32>()
+            load - self.point(preload_n, crate::fastmath::fx_from_f32(v)).thrust_n(speed_mm_s).to_num::<f32>()
         };
         let top: f32 = max_v.max(Fx::ZERO).to_num();
-        let h = if hint_v.is_finite() { hint_v.clamp(0.0, top) } else { 0.5 * top };
+        let h = if hint_v.is_finite() { crate::fastmath::clamp_f32(hint_v, 0.0, top) } else { 0.5 * top };
         let eh = excess(h);
         let bracket = if eh > 0.0 {
             let up = (h + SPAN_V).min(top);
@@ -181,7 +181,7 @@ impl PerVolt {
         // The upper side of the final bracket: thrust reaches the load there. Eight steps bound
         // the worst period (a cold start over the whole range); warm starts need two or three.
         let k = falling_root(excess, bracket, 0.01, 1e-4, 8);
-        Fx::saturating_from_num(k.b).min(max_v)
+        crate::fastmath::fx_from_f32(k.b).min(max_v)
     }
 }
 
@@ -214,7 +214,7 @@ fn falling_root(
         let mut c = if span > 0.0 { k.a + k.fa * (k.b - k.a) / span } else { 0.5 * (k.a + k.b) };
         // Keep strictly inside so the bracket always shrinks.
         let margin = 0.01 * (k.b - k.a);
-        c = c.clamp(k.a + margin, k.b - margin);
+        c = crate::fastmath::clamp_f32(c, k.a + margin, k.b - margin);
         let fc = f(c);
         if fc.abs() < ftol {
             return Bracket { a: c, fa: fc, b: c, fb: fc };
@@ -249,7 +249,7 @@ impl MotorConstants {
         let (f0, f1) = (f.get(i).copied().unwrap_or(Fx::ZERO), f.get(i + 1).copied().unwrap_or(Fx::ONE));
         let (y0, y1) =
             (table.get(i).copied().unwrap_or(Fx::ZERO), table.get(i + 1).copied().unwrap_or(Fx::ZERO));
-        let t = (freq_khz.clamp(f0, f1) - f0).checked_div(f1 - f0).unwrap_or(Fx::ZERO);
+        let t = (freq_khz.max(f0).min(f1) - f0).checked_div(f1 - f0).unwrap_or(Fx::ZERO);
         y0 + (y1 - y0) * t
     }
 
@@ -370,7 +370,7 @@ impl ThrustPoint {
             return Fx::ZERO;
         }
         let load: f32 = load_n.to_num();
-        let excess = |v: f32| self.thrust_n(Fx::saturating_from_num(v)).to_num::<f32>() - load;
+        let excess = |v: f32| self.thrust_n(crate::fastmath::fx_from_f32(v)).to_num::<f32>() - load;
         let top: f32 = self.foot_speed_mm_s.to_num();
         let f0 = (stall - load_n).to_num::<f32>();
         let mut bracket = None;
@@ -394,6 +394,6 @@ impl ThrustPoint {
         };
         let k = falling_root(excess, bracket, 0.001, 1e-4, 12);
         // The lower side: the motor surely makes this speed.
-        Fx::saturating_from_num(k.a)
+        crate::fastmath::fx_from_f32(k.a)
     }
 }

@@ -16,6 +16,7 @@
 //! | `hertz_contact` | `kc × (F0/Fref)^n` | same `kc` in eq. (7) |
 
 use crate::params::Params;
+use crate::roots::falling_root;
 use crate::steady::{OperatingPoint, ThrustModel};
 use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
@@ -490,7 +491,7 @@ impl EffectModel {
             while net(hi, 1.0) > 0.0 && hi < 1.0 {
                 hi *= 2.0;
             }
-            bisect(|v| net(v, 1.0), 0.0, hi)
+            falling_root(|v| net(v, 1.0), 0.0, hi, 1e-11)
         } else if at0 - load_n >= -self.rail_coulomb_n {
             0.0
         } else {
@@ -498,54 +499,9 @@ impl EffectModel {
             while net(lo, -1.0) < 0.0 && lo > -1.0 {
                 lo *= 2.0;
             }
-            bisect(|v| net(v, -1.0), lo, 0.0)
+            falling_root(|v| net(v, -1.0), lo, 0.0, 1e-11)
         }
     }
-}
-
-/// Root of a decreasing function with f(lo) ≥ 0 ≥ f(hi): Illinois (regula falsi) with a bisection
-/// guard, to a bracket of 1e-11 of the interval.
-fn bisect(f: impl Fn(f64) -> f64, lo: f64, hi: f64) -> f64 {
-    let (mut a, mut b) = (lo, hi);
-    let (mut fa, mut fb) = (f(a), f(b));
-    if fa <= 0.0 {
-        return a;
-    }
-    if fb >= 0.0 {
-        return b;
-    }
-    let tol = 1e-11 * (hi - lo).abs().max(1e-12);
-    let ftol = 1e-13 * (fa - fb);
-    let mut side = 0i8;
-    for i in 0..100 {
-        let mut m = (a * fb - b * fa) / (fb - fa);
-        if !(m > a && m < b) || i % 8 == 7 {
-            m = 0.5 * (a + b);
-        }
-        let fm = f(m);
-        if fm.abs() <= ftol {
-            return m;
-        }
-        if fm > 0.0 {
-            a = m;
-            fa = fm;
-            if side == 1 {
-                fb *= 0.5;
-            }
-            side = 1;
-        } else {
-            b = m;
-            fb = fm;
-            if side == -1 {
-                fa *= 0.5;
-            }
-            side = -1;
-        }
-        if b - a < tol {
-            break;
-        }
-    }
-    (a * fb - b * fa) / (fb - fa)
 }
 
 /// 20-point Gauss–Legendre quadrature on [a, b].

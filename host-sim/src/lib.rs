@@ -14,6 +14,7 @@ pub mod pil;
 pub mod plant;
 pub mod plant_figures;
 pub mod plot;
+pub mod roots;
 pub mod serve;
 pub mod sil;
 pub mod steady;

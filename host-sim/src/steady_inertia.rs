@@ -12,6 +12,7 @@
 //! mean speed tends to the constant-speed model's as `M → ∞` (tested).
 
 use crate::params::Params;
+use crate::roots::falling_root;
 use crate::steady::{OperatingPoint, ThrustModel};
 use std::f64::consts::{PI, TAU};
 
@@ -105,37 +106,10 @@ impl InertialModel {
                 return None;
             }
         }
-        // Illinois (regula falsi) on the decreasing excess, to 1e-7 of the foot's peak speed: far
-        // below any speed the plant resolves. The excess is nearly linear in v(0) for a heavy
-        // slider, so this takes a handful of periods where bisection takes forty.
-        let (mut f_lo, mut f_hi) = (excess(lo), excess(hi));
-        let mut side = 0i8;
-        let mut root = 0.5 * (lo + hi);
-        for i in 0..200 {
-            root = (lo * f_hi - hi * f_lo) / (f_hi - f_lo);
-            if !(root > lo && root < hi) || i % 8 == 7 {
-                root = 0.5 * (lo + hi);
-            }
-            let f = excess(root);
-            if f > 0.0 {
-                lo = root;
-                f_lo = f;
-                if side == 1 {
-                    f_hi *= 0.5;
-                }
-                side = 1;
-            } else {
-                hi = root;
-                f_hi = f;
-                if side == -1 {
-                    f_lo *= 0.5;
-                }
-                side = -1;
-            }
-            if hi - lo < 1e-7 * w || f.abs() < 1e-12 * w {
-                break;
-            }
-        }
+        // Regula falsi on the decreasing excess, to 1e-7 of the bracket (≈ 1e-7 of the foot's
+        // peak speed): far below any speed the plant resolves. The excess is nearly linear in
+        // v(0) for a heavy slider, so this takes a handful of periods where bisection takes forty.
+        let root = falling_root(excess, lo, hi, 1e-7);
         let (_, mean, ripple, stuck) = self.run_period(root, load_n);
         Some(Orbit { mean_speed_m_s: mean, ripple_m_s: ripple, stick_fraction: stuck as f64 / STEPS as f64 })
     }

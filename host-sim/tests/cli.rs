@@ -73,12 +73,27 @@ fn curve_json_has_the_promised_fields_and_physical_values() {
 
 #[test]
 fn paper_json_lists_every_row_with_pass() {
+    // The default file's 8 kg counterweight cannot give the paper's stator modes (README, "Real
+    // masses"): its model rows pass; the stator rows pass on params/paper-masses.toml.
+    let stator_rows = ["first_stator_mode", "second_stator_mode", "counterweight_mass"];
     let out = host_sim(&["paper", "--json"]);
     assert!(out.status.success());
     let rows: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
-    assert!(rows.len() >= 12);
-    for r in rows {
+    assert!(rows.len() >= 15);
+    for r in &rows {
         assert!(r["name"].is_string() && r["paper"].is_string() && r["ours"].is_number());
+        assert!(r["unit"].is_string() && r["tolerance"].is_string());
+        if !stator_rows.contains(&r["name"].as_str().unwrap()) {
+            assert_eq!(r["pass"], serde_json::Value::Bool(true), "{r}");
+        }
+    }
+    // The plant column is there where a row is measured on the plant.
+    assert!(rows.iter().any(|r| r["plant"].is_number() && r["plant_pass"].is_boolean()));
+    let paper = concat!(env!("CARGO_MANIFEST_DIR"), "/params/paper-masses.toml");
+    let out = host_sim(&["--params", paper, "paper", "--model-only", "--json"]);
+    assert!(out.status.success());
+    let rows: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
+    for r in rows.iter().filter(|r| stator_rows.contains(&r["name"].as_str().unwrap())) {
         assert_eq!(r["pass"], serde_json::Value::Bool(true), "{r}");
     }
 }
