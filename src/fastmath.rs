@@ -2,6 +2,11 @@
 //! other targets (host tests, host-sim) Newton iterations in f64, rounded to the same bits.
 
 /// √x for x ≥ 0; 0 for negative numbers and NaN.
+///
+/// Hand-written rather than micromath's `sqrt` (the design card's f32 crate), by measurement on
+/// QEMU's Cortex-M4F (`tools/pil/run`, 4007 values 1e-6…1e6): this one 143 instructions a call
+/// and correctly rounded, micromath's 264 and up to 6.1 % off. Bit identity with the host build
+/// is what keeps `host-sim pil` free of differing periods. The core needs no other f32 function.
 #[inline]
 pub fn sqrt_f32(x: f32) -> f32 {
     // Written so NaN takes the early return too.

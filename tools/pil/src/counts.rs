@@ -18,6 +18,8 @@ pub fn hot_paths() {
     let k = calibrate();
     hprintln!("calibration: {} instructions per SysTick count", k);
 
+    // The core's square root against micromath's (the design card's f32 maths crate).
+    sqrt_against_micromath(k);
     // The FPU square root (VSQRT through inline asm) on the Cortex-M4F: expect 1.4142135 0.001 0.
     hprintln!(
         "sqrt on the FPU: {} {} {}",
@@ -229,4 +231,32 @@ fn gcs_lock_times(ctl: &Controller, k: f32) {
             whole.print("    execute", k);
         }
     }
+}
+
+/// Instructions and accuracy of the core's `sqrt_f32` (VSQRT) and micromath's `sqrt` over
+/// the values the core takes roots of (1e-6 … 1e6, 4000 points, log-spaced).
+fn sqrt_against_micromath(k: f32) {
+    use micromath::F32Ext;
+    let (mut core_stat, mut mm_stat) = (Stat::new(), Stat::new());
+    let mut worst_rel = 0.0f32;
+    let mut core_exact = true;
+    let mut x = 1e-6f32;
+    while x < 1e6 {
+        let mut a = 0.0f32;
+        let mut b = 0.0f32;
+        core_stat.add(counts(|| a = core::hint::black_box(piezo_drive::fastmath::sqrt_f32(core::hint::black_box(x)))));
+        mm_stat.add(counts(|| b = core::hint::black_box(F32Ext::sqrt(core::hint::black_box(x)))));
+        // Reference: VSQRT is IEEE 754 correctly rounded; check it by squaring back in f64.
+        let exact = (f64::from(a) * f64::from(a) - f64::from(x)).abs() <= f64::from(x) * 1.2e-7;
+        core_exact &= exact;
+        worst_rel = worst_rel.max(((b - a) / a).abs());
+        x *= 1.00692;
+    }
+    core_stat.print("fastmath::sqrt_f32 (VSQRT)", k);
+    mm_stat.print("micromath F32Ext::sqrt", k);
+    hprintln!(
+        "  micromath's largest relative error against VSQRT: {}; VSQRT within half an ulp: {}",
+        worst_rel,
+        core_exact
+    );
 }
