@@ -1,6 +1,7 @@
 //! host-sim: the physical plant of the shaking-beam piezo motor, its steady-state thrust model,
 //! and the command-line tools around them.
 pub mod characterize;
+pub mod check;
 pub mod curve;
 pub mod effects;
 pub mod gap;
@@ -13,6 +14,7 @@ pub mod params;
 pub mod plant;
 pub mod plant_figures;
 pub mod plot;
+pub mod readme_figures;
 pub mod serve;
 pub mod sil;
 pub mod steady;
