@@ -231,77 +231,61 @@ fn marked_blocks(readme: &str) -> Result<Vec<(String, std::ops::Range<usize>)>> 
     Ok(out)
 }
 
-/// Numbers in a text (a '−' counts as a minus), each with the size of one unit in its last
-/// printed digit.
-pub fn numbers(text: &str) -> Vec<(f64, f64)> {
+/// Numbers in a text (a '−' counts as a minus; digits that follow a letter, as in `F0` or `x1`,
+/// belong to the word), each with the size of one unit in its last printed digit, and the text
+/// with each number replaced by `#` and its count of decimals: what must match exactly.
+fn scan(text: &str) -> (Vec<(f64, f64)>, String) {
     let chars: Vec<char> = text.chars().collect();
-    let mut out = Vec::new();
+    let mut numbers = Vec::new();
+    let mut skeleton = String::new();
     let mut i = 0;
     while i < chars.len() {
+        let after_word = i > 0 && chars[i - 1].is_alphanumeric();
         let neg = matches!(chars[i], '-' | '−')
             && chars.get(i + 1).is_some_and(|c| c.is_ascii_digit())
-            && (i == 0 || !chars[i - 1].is_ascii_alphanumeric());
+            && !after_word;
         let start = if neg { i + 1 } else { i };
-        if chars.get(start).is_some_and(|c| c.is_ascii_digit())
-            && (neg || i == 0 || !chars[i - 1].is_ascii_alphabetic())
-        {
-            let mut j = start;
-            let mut decimals: Option<i32> = None;
-            while j < chars.len() {
-                let c = chars[j];
-                if c.is_ascii_digit() {
-                    if let Some(d) = decimals.as_mut() {
-                        *d += 1;
-                    }
-                } else if c == '.'
-                    && decimals.is_none()
-                    && chars.get(j + 1).is_some_and(|c| c.is_ascii_digit())
-                {
-                    decimals = Some(0);
-                } else {
-                    break;
-                }
-                j += 1;
-            }
-            let s: String = chars[start..j].iter().collect();
-            if let Ok(v) = s.parse::<f64>() {
-                let unit = 10f64.powi(-decimals.unwrap_or(0));
-                out.push((if neg { -v } else { v }, unit));
-            }
-            i = j;
-        } else {
+        if !(chars.get(start).is_some_and(|c| c.is_ascii_digit()) && (neg || !after_word)) {
+            skeleton.push(chars[i]);
             i += 1;
+            continue;
         }
+        let mut j = start;
+        let mut decimals: Option<i32> = None;
+        while j < chars.len() {
+            let c = chars[j];
+            if c.is_ascii_digit() {
+                if let Some(d) = decimals.as_mut() {
+                    *d += 1;
+                }
+            } else if c == '.' && decimals.is_none() && chars.get(j + 1).is_some_and(|c| c.is_ascii_digit()) {
+                decimals = Some(0);
+            } else {
+                break;
+            }
+            j += 1;
+        }
+        let digits: String = chars[start..j].iter().collect();
+        let value: f64 = digits.parse().unwrap_or(f64::NAN);
+        let places = decimals.unwrap_or(0);
+        numbers.push((if neg { -value } else { value }, 10f64.powi(-places)));
+        let _ = write!(skeleton, "#{places}");
+        i = j;
     }
-    out
+    (numbers, skeleton)
 }
 
-/// The text with its numbers taken out: what must match exactly.
-fn skeleton(text: &str) -> String {
-    let mut s = String::new();
-    let mut in_number = false;
-    for c in text.chars() {
-        if c.is_ascii_digit() || (in_number && c == '.') {
-            if !in_number {
-                s.push('#');
-            }
-            in_number = true;
-        } else {
-            if c != '−' && c != '-' {
-                s.push(c);
-            }
-            in_number = false;
-        }
-    }
-    s
+/// The numbers of a text with the unit of their last printed digit (see `scan`).
+pub fn numbers(text: &str) -> Vec<(f64, f64)> {
+    scan(text).0
 }
 
 /// Differences between a committed table and the generated one, within the table tolerance.
 pub fn table_drift(committed: &str, generated: &str) -> Option<String> {
-    let a = numbers(committed);
-    let b = numbers(generated);
-    if a.len() != b.len() || skeleton(committed) != skeleton(generated) {
-        return Some("layout or text differs".into());
+    let (a, layout_a) = scan(committed);
+    let (b, layout_b) = scan(generated);
+    if layout_a != layout_b {
+        return Some("layout, text or printed precision differs".into());
     }
     for ((x, ux), (y, _)) in a.iter().zip(&b) {
         let tol = ux.max(0.01 * x.abs().max(y.abs())) * (1.0 + 1e-9);
@@ -314,10 +298,10 @@ pub fn table_drift(committed: &str, generated: &str) -> Option<String> {
 
 /// Differences between a committed SVG and the generated one, within the figure tolerance.
 pub fn figure_drift(committed: &str, generated: &str) -> Option<String> {
-    let a = numbers(committed);
-    let b = numbers(generated);
-    if a.len() != b.len() || skeleton(committed) != skeleton(generated) {
-        return Some(format!("elements differ ({} numbers committed, {} now)", a.len(), b.len()));
+    let (a, layout_a) = scan(committed);
+    let (b, layout_b) = scan(generated);
+    if layout_a != layout_b {
+        return Some(format!("elements or text differ ({} numbers committed, {} now)", a.len(), b.len()));
     }
     for ((x, _), (y, _)) in a.iter().zip(&b) {
         if (x - y).abs() > 2.0 {
@@ -391,4 +375,35 @@ pub fn run(args: &ReadmeFiguresArgs) -> Result<()> {
     }
     println!("figures written to {}; README tables updated", docs.display());
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_carry_the_unit_of_their_last_digit() {
+        assert_eq!(
+            numbers("| **−0.40** / 2.22 | 28.0 nm | x2 |"),
+            vec![(-0.40, 0.01), (2.22, 0.01), (28.0, 0.1)]
+        );
+        assert_eq!(numbers("F0 16 N, x1=\"-3\""), vec![(16.0, 1.0), (-3.0, 1.0)]);
+    }
+
+    #[test]
+    fn tables_pass_within_the_last_digit_or_one_percent_and_fail_beyond() {
+        assert!(table_drift("| 0.424 s | 28.0 nm |", "| 0.425 s | 28.1 nm |").is_none());
+        assert!(table_drift("| 540.0 nm |", "| 545.0 nm |").is_none(), "within 1 %");
+        assert!(table_drift("| 0.424 s |", "| 0.430 s |").is_some());
+        assert!(table_drift("| 29 nm |", "| 28.0 nm |").is_some(), "a changed layout is drift");
+        assert!(table_drift("| a | 1 |", "| b | 1 |").is_some());
+    }
+
+    #[test]
+    fn figures_pass_within_two_and_fail_beyond() {
+        let a = r#"<circle cx="100" cy="200" r="5"/><text>1.5</text>"#;
+        assert!(figure_drift(a, r#"<circle cx="101" cy="198" r="5"/><text>1.5</text>"#).is_none());
+        assert!(figure_drift(a, r#"<circle cx="104" cy="200" r="5"/><text>1.5</text>"#).is_some());
+        assert!(figure_drift(a, r#"<rect cx="100" cy="200" r="5"/><text>1.5</text>"#).is_some());
+    }
 }
