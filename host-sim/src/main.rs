@@ -41,7 +41,8 @@ enum Command {
         #[arg(long, value_name = "FILE.svg")]
         plot: Option<PathBuf>,
     },
-    /// The paper's figures (physics.md §5): theirs, ours, the band we hold, pass/fail.
+    /// The paper's figures (physics.md §5, in ../shared/ beside the checkout): theirs, ours, the
+    /// band we hold, pass/fail.
     Paper {
         /// Print one JSON array of rows {name, paper, ours, unit, tolerance, pass, plant,
         /// plant_pass}: `paper` is the paper's figure as text, `ours` the model's value in `unit`,
