@@ -56,20 +56,15 @@ pub struct CharacterizeArgs {
 
 impl CharacterizeArgs {
     fn validate(&self) -> Result<()> {
-        let check = |name: &str, v: &[f64], ok: &dyn Fn(f64) -> bool| -> Result<()> {
-            if v.is_empty() || v.iter().any(|x| !x.is_finite() || !ok(*x)) {
-                bail!("--{name}: every value must be in range, got {v:?}");
-            }
-            Ok(())
-        };
-        check("voltages-v", &self.voltages_v, &|x| x > 0.0 && x <= 1000.0)?;
-        check("frequencies-hz", &self.frequencies_hz, &|x| x > 0.0 && x <= 100_000.0)?;
-        if self.directions.is_empty() || self.directions.iter().any(|d| *d != 1 && *d != -1) {
-            bail!("--directions: each must be 1 or -1, got {:?}", self.directions);
-        }
-        if !(self.load_n.is_finite() && (0.0..=100.0).contains(&self.load_n)) {
-            bail!("--load-n must be in [0, 100] N, got {}", self.load_n);
-        }
+        use crate::check;
+        // The board decides the drive's real limits; these only catch typos, in the shared wording.
+        check::each("--voltages-v", &self.voltages_v, |f, x| check::in_range(f, x, 0.0, false, 1000.0, "V"))?;
+        check::each("--frequencies-hz", &self.frequencies_hz, |f, x| {
+            check::in_range(f, x, 0.0, false, 100_000.0, "Hz")
+        })?;
+        check::each("--directions", &self.directions, |f, d| check::direction(f, i64::from(d)))?;
+        check::in_range("--load-n", self.load_n, 0.0, true, 100.0, "N")?;
+        check::output_file("--out", &self.out)?;
         if self.load_n > 0.0 && self.directions.contains(&-1) {
             bail!(
                 "--load-n {}: the weight pulls toward −x and would help the −x runs, which the load \

@@ -1,36 +1,51 @@
 //! Thrust–velocity characteristic: steady-state model and time-domain plant side by side.
 
+use crate::check::ser;
 use crate::params::Params;
 use crate::plant::steady_speed_m_s;
 use crate::steady::{OperatingPoint, ThrustModel};
 use crate::steady_inertia::InertialModel;
 use serde::Serialize;
 
+/// JSON values are rounded to what they resolve: forces to 1e-4 N, speeds to 1 nm/s, angles to
+/// 1 µrad.
 #[derive(Debug, Clone, Serialize)]
 pub struct CurvePoint {
+    #[serde(serialize_with = "ser::newton")]
     pub load_n: f64,
+    #[serde(serialize_with = "ser::mm_s")]
     pub speed_mm_s_model: f64,
     /// The model with the slider's inertia (`steady_inertia`); null where no periodic motion exists.
+    #[serde(serialize_with = "ser::mm_s")]
     pub speed_mm_s_inertia: f64,
+    #[serde(serialize_with = "ser::mm_s")]
     pub speed_mm_s_sim: f64,
 }
 
 #[derive(Debug, Clone, Serialize)]
 pub struct Curve {
+    #[serde(serialize_with = "ser::newton")]
     pub preload_n: f64,
     pub voltage_v: f64,
     pub frequency_hz: f64,
     pub direction: i8,
+    #[serde(serialize_with = "ser::newton")]
     pub stall_force_n: f64,
+    #[serde(serialize_with = "ser::mm_s")]
     pub no_load_speed_mm_s: f64,
+    #[serde(serialize_with = "ser::rad")]
     pub contact_angle_rad: f64,
     pub full_contact: bool,
+    #[serde(serialize_with = "ser::newton")]
     pub contact_force_amplitude_n: f64,
+    #[serde(serialize_with = "ser::mm_s")]
     pub foot_peak_speed_mm_s: f64,
     /// Moving mass the plant and the inertial model ran with.
     pub slider_mass_kg: f64,
     /// Stall force and no-load speed of the model with the slider's inertia.
+    #[serde(serialize_with = "ser::newton")]
     pub stall_force_inertia_n: f64,
+    #[serde(serialize_with = "ser::mm_s")]
     pub no_load_speed_inertia_mm_s: f64,
     pub points: Vec<CurvePoint>,
     /// Dense model curve for plotting: (load N, speed mm/s).

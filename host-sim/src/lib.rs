@@ -1,6 +1,7 @@
 //! host-sim: the physical plant of the shaking-beam piezo motor, its steady-state thrust model,
 //! and the command-line tools around them.
 pub mod characterize;
+pub mod check;
 pub mod curve;
 pub mod effects;
 pub mod gap;
@@ -14,6 +15,7 @@ pub mod pil;
 pub mod plant;
 pub mod plant_figures;
 pub mod plot;
+pub mod readme_figures;
 pub mod roots;
 pub mod serve;
 pub mod sil;

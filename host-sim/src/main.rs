@@ -4,7 +4,7 @@ use anyhow::{bail, Result};
 use clap::{Parser, Subcommand};
 use host_sim::params::{FrictionModel, Params};
 use host_sim::steady::OperatingPoint;
-use host_sim::{curve, moves, paper, plot};
+use host_sim::{check, curve, moves, paper, plot};
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -41,9 +41,12 @@ enum Command {
         #[arg(long, value_name = "FILE.svg")]
         plot: Option<PathBuf>,
     },
-    /// The paper's figures (physics.md §5): theirs, ours, the band we hold, pass/fail.
+    /// The paper's figures (physics.md §5, in ../shared/ beside the checkout): theirs, ours, the
+    /// band we hold, pass/fail.
     Paper {
-        /// Print one JSON array of rows {name, paper, ours, unit, tolerance, pass, plant, plant_pass}.
+        /// Print one JSON array of rows {name, paper, ours, unit, tolerance, pass, plant,
+        /// plant_pass}: `paper` is the paper's figure as text, `ours` the model's value in `unit`,
+        /// `tolerance` the band we hold, `plant`/`plant_pass` only where measured on the plant.
         #[arg(long)]
         json: bool,
         /// Evaluate the steady-state model and the stator's modes only (skip the plant runs).
@@ -85,15 +88,20 @@ enum Command {
         /// Tell the controller the load beforehand (otherwise its observer finds it while moving).
         #[arg(long)]
         load_known: bool,
+        /// Print one JSON object (settle_time_s, final_error_nm, overshoot_nm, slide_back_nm,
+        /// max_following_error_um, fault, ...) instead of the summary.
         #[arg(long)]
         json: bool,
+        /// Also draw position, reference and drive voltage against time to this SVG file.
         #[arg(long, value_name = "FILE.svg")]
         plot: Option<PathBuf>,
     },
     /// The main job: a scripted closed-loop sequence (long move, 10 µm / 1 µm / 100 nm steps, a
     /// move against 2 N, a preload change while holding, an out-of-window preload refused),
-    /// printed as a table and drawn to demo.svg; then the thrust–velocity characteristic.
+    /// printed as a table and drawn to demo.svg (ignored by git); then the thrust–velocity
+    /// characteristic.
     Demo {
+        /// Where to draw the sequence (position, reference, drive voltage against time).
         #[arg(long, value_name = "FILE.svg", default_value = "demo.svg")]
         plot: PathBuf,
     },
@@ -101,6 +109,9 @@ enum Command {
     /// Cortex-M4F (QEMU) against the plant; instruction counts per tick and per state, and every
     /// period whose outputs differ from the host build's.
     Pil(host_sim::pil::PilArgs),
+    /// Regenerate every figure in docs/ and every table of the README from the code (the README's
+    /// marked tables are rewritten in place); `--check` compares instead and fails on drift.
+    ReadmeFigures(host_sim::readme_figures::ReadmeFiguresArgs),
     /// Print the firmware's baked motor table for the parameter file, as Rust source:
     /// `host-sim firmware-table > src/motor_table.rs` after changing the motor's parameters.
     FirmwareTable,
@@ -135,33 +146,44 @@ struct PointArgs {
 impl PointArgs {
     fn validate(&self, p: &Params) -> Result<OperatingPoint> {
         let range = p.amplifier.output_max_v - p.amplifier.output_min_v;
-        if !(self.preload_n.is_finite() && self.preload_n > 0.0) {
-            bail!("--preload-n must be a positive force in newtons, got {}", self.preload_n);
-        }
-        if !(self.voltage_v.is_finite() && self.voltage_v > 0.0 && self.voltage_v <= range) {
-            bail!("--voltage-v must be in (0, {range}] V (the amplifier range), got {}", self.voltage_v);
-        }
-        if !(self.frequency_hz.is_finite()
-            && self.frequency_hz > 0.0
-            && self.frequency_hz <= 0.1 * p.amplifier.dac_rate_hz)
-        {
-            bail!(
-                "--frequency-hz must be in (0, {}] Hz (a tenth of the DAC rate), got {}",
-                0.1 * p.amplifier.dac_rate_hz,
-                self.frequency_hz
-            );
-        }
-        if self.direction != 1 && self.direction != -1 {
-            bail!("--direction must be 1 or -1, got {}", self.direction);
-        }
-        Ok(OperatingPoint {
-            preload_n: self.preload_n,
-            voltage_v: self.voltage_v,
-            frequency_hz: self.frequency_hz,
-        })
+        let op = OperatingPoint {
+            preload_n: check::preload_n("--preload-n", self.preload_n)?,
+            voltage_v: check::voltage_v("--voltage-v", self.voltage_v, range)?,
+            frequency_hz: check::frequency_hz("--frequency-hz", self.frequency_hz, p.amplifier.dac_rate_hz)?,
+        };
+        check::direction("--direction", i64::from(self.direction))?;
+        Ok(op)
     }
 }
 
+/// clap's error on one line: its message and tips without the usage block, and a pointer to the
+/// help of the subcommand the user was typing (`host-sim move --help`), not the top level.
+fn one_line_clap_error(e: &clap::Error, args: &[String]) -> String {
+    use clap::CommandFactory;
+    let text = e.to_string();
+    let mut parts: Vec<&str> = Vec::new();
+    for line in text.lines() {
+        let line = line.trim();
+        if line.starts_with("Usage:") || line.starts_with("For more information") {
+            break;
+        }
+        if !line.is_empty() {
+            parts.push(line);
+        }
+    }
+    let mut message = parts.join(" ");
+    if message.is_empty() {
+        message = "error: invalid arguments".into();
+    }
+    let cmd = Cli::command();
+    let sub = args.iter().skip(1).find_map(|a| {
+        cmd.get_subcommands().find(|s| s.get_name() == a.as_str()).map(|s| s.get_name().to_string())
+    });
+    match sub {
+        Some(name) => format!("{message} (see host-sim {name} --help)"),
+        None => format!("{message} (see host-sim --help)"),
+    }
+}
 fn main() -> ExitCode {
     let cli = match Cli::try_parse() {
         Ok(c) => c,
@@ -175,10 +197,8 @@ fn main() -> ExitCode {
                 let _ = e.print();
                 return ExitCode::from(2);
             }
-            // One line: clap's first line, without the usage block.
-            let text = e.to_string();
-            let first = text.lines().next().unwrap_or("invalid arguments");
-            eprintln!("{first} (see host-sim --help)");
+            let args: Vec<String> = std::env::args().collect();
+            eprintln!("{}", one_line_clap_error(&e, &args));
             return ExitCode::from(2);
         }
     };
@@ -192,8 +212,13 @@ fn main() -> ExitCode {
     }
 }
 
+/// Progress of a points loop, on a terminal only.
 fn progress(label: &str) -> impl FnMut(usize, usize) + '_ {
+    let show = check::show_progress();
     move |done, total| {
+        if !show {
+            return;
+        }
         let mut err = std::io::stderr();
         let _ = write!(err, "\r{label}: {done}/{total} points simulated");
         if done == total {
@@ -209,13 +234,16 @@ fn run(cli: Cli) -> Result<()> {
         None => Params::prototype(),
     };
     if let Some(mass_kg) = cli.slider_mass_kg {
-        params.slider.mass_kg = validated_slider_mass_kg(mass_kg)?;
+        params.slider.mass_kg = check::slider_mass_kg("--slider-mass-kg", mass_kg)?;
     }
     match cli.command {
         Command::Curve { point, points, friction, json, plot: plot_path } => {
             let op = point.validate(&params)?;
             if !(2..=200).contains(&points) {
-                bail!("--points must be 2..=200, got {points}");
+                bail!("--points must be in [2, 200], got {points}");
+            }
+            if let Some(path) = &plot_path {
+                check::output_file("--plot", path)?;
             }
             if let Some(model) = friction {
                 params.friction.model = model;
@@ -236,7 +264,12 @@ fn run(cli: Cli) -> Result<()> {
         Command::Paper { json, model_only } => {
             let evaluate =
                 if model_only { paper::Evaluate::ModelOnly } else { paper::Evaluate::ModelAndPlant };
-            let rows = paper::rows(&params, evaluate, |what| eprintln!("paper: {what}..."));
+            let show = check::show_progress();
+            let rows = paper::rows(&params, evaluate, |what| {
+                if show {
+                    eprintln!("paper: {what}...");
+                }
+            });
             if json {
                 println!("{}", serde_json::to_string_pretty(&rows)?);
             } else {
@@ -272,16 +305,15 @@ fn run(cli: Cli) -> Result<()> {
             }
         }
         Command::Move { to_um, preload_n, load_n, no_feedforward, load_known, json, plot: plot_path } => {
-            if !to_um.is_finite() || to_um.abs() > 50_000.0 {
-                bail!("--to-um must be a position within ±50000 µm, got {to_um}");
+            check::position_um("--to-um", to_um)?;
+            check::preload_n("--preload-n", preload_n)?;
+            check::load_n("--load-n", load_n)?;
+            if let Some(path) = &plot_path {
+                check::output_file("--plot", path)?;
             }
-            if !(preload_n.is_finite() && preload_n > 0.0 && preload_n <= 60.0) {
-                bail!("--preload-n must be in (0, 60] N, got {preload_n}");
+            if check::show_progress() {
+                eprintln!("simulating the move (controller at 10 kHz against the plant at 1 MHz)...");
             }
-            if !(load_n.is_finite() && load_n.abs() <= 20.0) {
-                bail!("--load-n must be within ±20 N, got {load_n}");
-            }
-            eprintln!("simulating the move (controller at 10 kHz against the plant at 1 MHz)...");
             let spec = moves::MoveSpec { to_um, preload_n, load_n, feedforward: !no_feedforward, load_known };
             let r = moves::single_move(&params, spec)?;
             if let Some(path) = &plot_path {
@@ -296,7 +328,16 @@ fn run(cli: Cli) -> Result<()> {
             } else {
                 println!("move 0 → {to_um} µm at F0 {preload_n} N against {load_n} N");
                 match &r.fault {
-                    Some(f) => println!("fault/refusal: {} (code {})", f.text, f.code),
+                    Some(f) => {
+                        println!("fault/refusal: {} (code {})", f.text, f.code);
+                        if let Some(back) = r.slide_back_nm {
+                            println!(
+                                "before the fault: overshoot {:.1} nm past the target, then slid back {:.1} nm \
+                                 against the move, ending {:.1} nm from the target",
+                                r.overshoot_nm, back, r.final_error_nm
+                            );
+                        }
+                    }
                     None => println!(
                         "settle time {}, final error {:.1} nm, overshoot {:.1} nm, max following error {:.3} µm",
                         r.settle_time_s.map_or("never".into(), |t| format!("{t:.4} s")),
@@ -315,14 +356,23 @@ fn run(cli: Cli) -> Result<()> {
                     point.direction
                 );
             }
-            if !(load_n.is_finite() && load_n.abs() <= 20.0) {
-                bail!("--load-n must be within ±20 N, got {load_n}");
+            check::load_n("--load-n", load_n)?;
+            if !masses_kg.is_empty() {
+                // The same quantity as the global override, so the same check and wording.
+                check::each(
+                    "--masses-kg (slider masses, as --slider-mass-kg)",
+                    &masses_kg,
+                    check::slider_mass_kg,
+                )?;
+            }
+            if let Some(path) = &plot_path {
+                check::output_file("--plot", path)?;
             }
             let masses = if masses_kg.is_empty() { vec![params.slider.mass_kg] } else { masses_kg };
             let mut traces = Vec::new();
             for m in masses {
                 let mut p = params.clone();
-                p.slider.mass_kg = validated_slider_mass_kg(m)?;
+                p.slider.mass_kg = m;
                 traces.push(host_sim::trace::one_period(&p, op, load_n, 720));
             }
             if let Some(path) = &plot_path {
@@ -419,8 +469,14 @@ fn run(cli: Cli) -> Result<()> {
         Command::Measure(args) => host_sim::measure::run(args, &params)?,
         Command::Characterize(args) => host_sim::characterize::run(&args)?,
         Command::Demo { plot: plot_path } => {
+            check::output_file("--plot", &plot_path)?;
             println!("Shaking-beam piezo motor, closed loop: the firmware's controller against the plant");
-            let (rows, trace) = moves::demo(&params, |label| eprintln!("demo: {label}..."))?;
+            let show = check::show_progress();
+            let (rows, trace) = moves::demo(&params, |label| {
+                if show {
+                    eprintln!("demo: {label}...");
+                }
+            })?;
             println!(
                 "{:<38} {:>12} {:>12} {:>14} {:>14} {:>12}  result",
                 "step", "target µm", "settle s", "final err nm", "overshoot nm", "max FE µm"
@@ -450,6 +506,7 @@ fn run(cli: Cli) -> Result<()> {
             print_curve(&c);
         }
         Command::Serve(args) => host_sim::serve::run(&params, &args)?,
+        Command::ReadmeFigures(args) => host_sim::readme_figures::run(&args)?,
         Command::FirmwareTable => {
             let source = cli.params.as_ref().map_or_else(
                 || "host-sim/params/prototype.toml".to_string(),
@@ -459,14 +516,6 @@ fn run(cli: Cli) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// The moving mass the plant accepts: positive, at most a tonne.
-fn validated_slider_mass_kg(mass_kg: f64) -> Result<f64> {
-    if !(mass_kg.is_finite() && mass_kg > 0.0 && mass_kg <= 1000.0) {
-        bail!("--slider-mass-kg must be in (0, 1000] kg, got {mass_kg}");
-    }
-    Ok(mass_kg)
 }
 
 fn print_curve(c: &curve::Curve) {

@@ -199,6 +199,8 @@ pub struct MeasureArgs {
 }
 
 pub fn run(args: MeasureArgs, params: &Params) -> Result<()> {
+    use crate::check;
+    check::output_file("--out", &args.out)?;
     let mut p = params.clone();
     for spec in &args.effects {
         parse_effect_spec(spec, &mut p.effects)?;
@@ -213,35 +215,37 @@ pub fn run(args: MeasureArgs, params: &Params) -> Result<()> {
         g => bail!("--grid must be 'paper' or 'compact', got '{g}'"),
     };
     let range = p.amplifier.output_max_v - p.amplifier.output_min_v;
-    let check = |name: &str, v: &[f64], ok: &dyn Fn(f64) -> bool| -> Result<()> {
-        if v.is_empty() || v.iter().any(|x| !x.is_finite() || !ok(*x)) {
-            bail!("--{name}: every value must be in range, got {v:?}");
-        }
-        Ok(())
-    };
+    // The same checks and wording as the single-value flags of the other subcommands.
     if let Some(v) = args.preloads_n {
-        check("preloads-n", &v, &|x| x > 0.0 && x <= 60.0)?;
+        check::each("--preloads-n", &v, check::preload_n)?;
         grid.preloads_n = v;
     }
     if let Some(v) = args.voltages_v {
-        check("voltages-v", &v, &|x| x > 0.0 && x <= range)?;
+        check::each("--voltages-v", &v, |f, x| check::voltage_v(f, x, range))?;
         grid.voltages_v = v;
     }
     if let Some(v) = args.frequencies_hz {
-        check("frequencies-hz", &v, &|x| x > 0.0 && x <= 0.1 * p.amplifier.dac_rate_hz)?;
+        check::each("--frequencies-hz", &v, |f, x| check::frequency_hz(f, x, p.amplifier.dac_rate_hz))?;
         grid.frequencies_hz = v;
     }
     if let Some(v) = args.load_fractions {
-        check("load-fractions", &v, &|x| (0.0..1.0).contains(&x))?;
+        check::each("--load-fractions", &v, |f, x| {
+            if x >= 1.0 {
+                bail!("{f} must be in [0, 1), got {x}");
+            }
+            check::in_range(f, x, 0.0, true, 1.0, "")
+        })?;
         grid.load_fractions = v;
     }
     if let Some(v) = args.directions {
-        if v.is_empty() || v.iter().any(|d| *d != 1 && *d != -1) {
-            bail!("--directions: each must be 1 or -1, got {v:?}");
-        }
+        check::each("--directions", &v, |f, d| check::direction(f, i64::from(d)))?;
         grid.directions = v;
     }
-    let bar = indicatif::ProgressBar::new(grid.len() as u64);
+    let bar = if check::show_progress() {
+        indicatif::ProgressBar::new(grid.len() as u64)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
     bar.set_style(
         indicatif::ProgressStyle::with_template("measure {bar:40} {pos}/{len} operating points ({eta})")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),

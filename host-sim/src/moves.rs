@@ -1,25 +1,41 @@
 //! Closed-loop moves in the loop: one move (`host-sim move`) and the scripted demo.
 
+use crate::check::ser;
 use crate::params::Params;
 use crate::plant::ExternalLoad;
 use crate::sil::{controller_config, Sil};
 use piezo_drive::controller::{ControllerConfig, State};
 use serde::Serialize;
 
-/// Outcome of one move, measured on the plant's true slider position.
+/// Outcome of one move, measured on the plant's true slider position. JSON values are rounded
+/// to what they resolve: times to 1 ns, positions to 0.1 nm, forces to 1e-4 N.
 #[derive(Debug, Clone, Serialize)]
 pub struct MoveResult {
+    #[serde(serialize_with = "ser::um")]
     pub from_um: f64,
+    #[serde(serialize_with = "ser::um")]
     pub to_um: f64,
+    #[serde(serialize_with = "ser::newton")]
     pub preload_n: f64,
+    #[serde(serialize_with = "ser::newton")]
     pub load_n: f64,
     /// Time from the command until the slider is within ±1 count of the target for good
     /// (null when it never settled).
+    #[serde(serialize_with = "ser::opt_time_s")]
     pub settle_time_s: Option<f64>,
     /// When the controller's ONT? first said on target.
+    #[serde(serialize_with = "ser::opt_time_s")]
     pub on_target_time_s: Option<f64>,
+    #[serde(serialize_with = "ser::nm")]
     pub final_error_nm: f64,
+    /// Farthest the slider went past the target in the direction of the move (0 if never).
+    #[serde(serialize_with = "ser::nm")]
     pub overshoot_nm: f64,
+    /// Only when the move ended in a fault: how far the slider went back, against the direction
+    /// of the move, from the farthest point it reached (a stall that slides back). Null otherwise.
+    #[serde(serialize_with = "ser::opt_nm")]
+    pub slide_back_nm: Option<f64>,
+    #[serde(serialize_with = "ser::um")]
     pub max_following_error_um: f64,
     /// Fault code and text, null when none.
     pub fault: Option<FaultReport>,
@@ -64,6 +80,7 @@ pub fn run_move(sil: &mut Sil, to_nm: i64, max_s: f64, hold_s: f64) -> MoveResul
         on_target_time_s: None,
         final_error_nm: f64::NAN,
         overshoot_nm: 0.0,
+        slide_back_nm: None,
         max_following_error_um: 0.0,
         fault: None,
         trace: Vec::new(),
@@ -75,6 +92,9 @@ pub fn run_move(sil: &mut Sil, to_nm: i64, max_s: f64, hold_s: f64) -> MoveResul
     }
     let dir = if to_nm as f64 >= from_nm { 1.0 } else { -1.0 };
     let mut inside_since: Option<f64> = None;
+    // Farthest point along the move, and the largest retreat from it since.
+    let mut farthest_nm = dir * from_nm;
+    let mut retreat_nm: f64 = 0.0;
     let mut k = 0u64;
     while sil.time_s() - t0 < max_s {
         sil.period();
@@ -83,6 +103,8 @@ pub fn run_move(sil: &mut Sil, to_nm: i64, max_s: f64, hold_s: f64) -> MoveResul
         let pos = sil.plant.slider_position_m() * 1e9;
         let err = pos - to_nm as f64;
         result.overshoot_nm = result.overshoot_nm.max(dir * err);
+        farthest_nm = farthest_nm.max(dir * pos);
+        retreat_nm = retreat_nm.max(farthest_nm - dir * pos);
         let c = &sil.controller;
         result.max_following_error_um =
             result.max_following_error_um.max(c.max_following_error_nm() as f64 * 1e-3);
@@ -99,6 +121,7 @@ pub fn run_move(sil: &mut Sil, to_nm: i64, max_s: f64, hold_s: f64) -> MoveResul
         }
         if let State::Fault(code) = c.state() {
             result.fault = Some(FaultReport { code: code as u8, text: code.text() });
+            result.slide_back_nm = Some(retreat_nm);
             break;
         }
         if err.abs() <= count_nm {

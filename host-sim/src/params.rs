@@ -156,7 +156,10 @@ impl Params {
                 }
                 None => (0, 0),
             };
-            anyhow::anyhow!("line {line}, column {col}: {}", e.message().trim())
+            // toml's message can run over several lines ("invalid table header\nexpected ..."):
+            // keep the error on one.
+            let message: Vec<&str> = e.message().lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+            anyhow::anyhow!("line {line}, column {col}: {}", message.join("; "))
         })?;
         p.validate()?;
         Ok(p)

@@ -27,13 +27,13 @@ pub struct ServeArgs {
     #[arg(long)]
     pub verbose: bool,
     /// Preload force F0 of the simulated motor (N).
-    #[arg(long, default_value_t = 16.0)]
+    #[arg(long, default_value_t = 16.0, allow_negative_numbers = true)]
     pub preload_n: f64,
     /// Encoder index mark at this slider position of the plant (µm; the slider starts at 0).
     #[arg(long, default_value_t = -20.0, allow_negative_numbers = true)]
     pub index_um: f64,
     /// Limit switches this far beyond the index on either side (mm).
-    #[arg(long, default_value_t = 55.0)]
+    #[arg(long, default_value_t = 55.0, allow_negative_numbers = true)]
     pub limit_mm: f64,
     /// File for `WPA` (parameters as `SPA` lines, replayed at start-up); in memory when absent.
     #[arg(long, value_name = "FILE")]
@@ -155,14 +155,11 @@ pub struct VirtualController {
 
 impl VirtualController {
     pub fn new(p: &Params, args: &ServeArgs) -> Result<Self> {
-        if !(args.preload_n.is_finite() && args.preload_n > 0.0 && args.preload_n <= 60.0) {
-            bail!("--preload-n must be in (0, 60] N, got {}", args.preload_n);
-        }
-        if !(args.index_um.is_finite() && args.index_um.abs() <= 50_000.0) {
-            bail!("--index-um must be within ±50000 µm, got {}", args.index_um);
-        }
-        if !(args.limit_mm.is_finite() && args.limit_mm > 0.0 && args.limit_mm <= 1000.0) {
-            bail!("--limit-mm must be in (0, 1000] mm, got {}", args.limit_mm);
+        crate::check::preload_n("--preload-n", args.preload_n)?;
+        crate::check::position_um("--index-um", args.index_um)?;
+        crate::check::in_range("--limit-mm", args.limit_mm, 0.0, false, 1000.0, "mm")?;
+        if let Some(store) = &args.store {
+            crate::check::output_file("--store", store)?;
         }
         let mut sil = Sil::new(p, controller_config(p), args.preload_n, 1)?;
         let index_m = args.index_um * 1e-6;

@@ -125,3 +125,209 @@ fn slider_mass_override_is_checked_and_applied_after_any_subcommand() {
     let contact = t["contact_fraction"].as_f64().unwrap();
     assert!(contact > 0.0 && contact < 1.0, "16 N is intermittent contact: {contact}");
 }
+
+/// stderr of a failing run, which must be exactly one line.
+fn one_line_failure(args: &[&str]) -> String {
+    let out = host_sim(args);
+    assert!(!out.status.success(), "{args:?} must fail");
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
+    assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: error is not one line: {err}");
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+    err.trim_end().to_string()
+}
+
+fn scratch_dir(name: &str) -> std::path::PathBuf {
+    let dir = std::env::temp_dir().join(format!("host-sim-cli-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn a_missing_required_argument_is_named_with_the_subcommand_help() {
+    for (args, flag, help) in [
+        (&["move"][..], "--to-um", "host-sim move --help"),
+        (&["gap"][..], "--measured", "host-sim gap --help"),
+        (&["measure"][..], "--out", "host-sim measure --help"),
+        (&["--params", "x.toml", "move", "--json"][..], "--to-um", "host-sim move --help"),
+    ] {
+        let err = one_line_failure(args);
+        assert!(err.contains(flag), "{args:?}: the missing {flag} is not named: {err}");
+        assert!(err.contains(help), "{args:?}: no pointer to {help}: {err}");
+    }
+    // An unknown flag points at the subcommand's help too.
+    assert!(one_line_failure(&["curve", "--bogus"]).contains("host-sim curve --help"));
+}
+
+#[test]
+fn the_same_bad_value_gets_the_same_message_from_every_subcommand() {
+    let expected = "error: --preload-n must be in (0, 60] N, got -5";
+    for args in [
+        &["curve", "--preload-n", "-5"][..],
+        &["trace", "--preload-n", "-5"][..],
+        &["move", "--to-um", "10", "--preload-n", "-5"][..],
+        &["serve", "--tcp", "127.0.0.1:0", "--preload-n", "-5", "--duration-s", "1"][..],
+    ] {
+        assert_eq!(one_line_failure(args), expected, "{args:?}");
+    }
+    // A list takes every value through the same check.
+    let out = scratch_dir("same-value").join("m.csv");
+    assert_eq!(
+        one_line_failure(&["measure", "--preloads-n", "5,-5", "--out", out.to_str().unwrap()]),
+        "error: --preloads-n must be in (0, 60] N, got -5"
+    );
+    assert!(!out.exists(), "nothing written on a refused run");
+    let expected_load = "error: --load-n must be in [-20, 20] N, got 25";
+    assert_eq!(one_line_failure(&["move", "--to-um", "10", "--load-n", "25"]), expected_load);
+    assert_eq!(one_line_failure(&["trace", "--load-n", "25"]), expected_load);
+}
+
+/// Each of these would simulate for a long time before writing; a bad output path must stop it
+/// at once, naming the flag and the path.
+#[test]
+fn output_paths_are_checked_before_any_work() {
+    let missing = "/no/such/dir/x.svg";
+    let dir = scratch_dir("outputs");
+    let csv = dir.join("m.csv");
+    std::fs::write(&csv, "preload_n,voltage_v,frequency_hz,load_n,direction,velocity_mm_s\n").unwrap();
+    let a_file = dir.join("a-file");
+    std::fs::write(&a_file, "").unwrap();
+    let cases: Vec<(Vec<&str>, &str, &str)> = vec![
+        (vec!["curve", "--points", "200", "--plot", missing], "--plot", missing),
+        (vec!["trace", "--masses-kg", "1,2,3,4,5", "--plot", missing], "--plot", missing),
+        (vec!["move", "--to-um", "20000", "--plot", missing], "--plot", missing),
+        (vec!["demo", "--plot", missing], "--plot", missing),
+        (vec!["measure", "--out", "/no/such/dir/m.csv"], "--out", "/no/such/dir/m.csv"),
+        (
+            vec![
+                "gap",
+                "--measured",
+                "host-sim/data/example-measured.csv",
+                "--out",
+                a_file.to_str().unwrap(),
+            ],
+            "--out",
+            a_file.to_str().unwrap(),
+        ),
+        (
+            vec!["serve", "--tcp", "127.0.0.1:0", "--store", "/no/such/dir/p.txt"],
+            "--store",
+            "/no/such/dir/p.txt",
+        ),
+    ];
+    for (args, flag, path) in cases {
+        let mut args = args;
+        if args[0] == "gap" {
+            // Run from the repository root so the example file is found.
+            let root = concat!(env!("CARGO_MANIFEST_DIR"), "/../host-sim/data/example-measured.csv");
+            args[2] = root;
+        }
+        let t0 = std::time::Instant::now();
+        let err = one_line_failure(&args);
+        let elapsed = t0.elapsed().as_secs_f64();
+        assert!(err.contains(flag) && err.contains(path), "{args:?}: {err}");
+        assert!(elapsed < 5.0, "{args:?} took {elapsed:.1} s before failing: the work ran first");
+    }
+}
+
+#[test]
+fn a_bad_parameter_file_is_reported_on_one_line() {
+    let dir = scratch_dir("toml");
+    let bad = dir.join("header.toml");
+    // toml's own message for this spans two lines.
+    std::fs::write(&bad, "[stack\n").unwrap();
+    let err = one_line_failure(&["--params", bad.to_str().unwrap(), "paper", "--model-only"]);
+    assert!(err.contains("header.toml") && err.contains("line 1"), "{err}");
+}
+
+#[test]
+fn redirected_stderr_carries_no_progress_lines() {
+    for args in [&["curve", "--points", "2", "--json"][..], &["move", "--to-um", "5", "--json"][..]] {
+        let out = host_sim(args);
+        assert!(out.status.success(), "{args:?}");
+        assert_eq!(String::from_utf8_lossy(&out.stderr), "", "{args:?}: stderr is not a terminal here");
+    }
+}
+
+/// Decimal places a JSON number is printed with.
+fn decimals(v: &serde_json::Value) -> usize {
+    let s = v.to_string();
+    assert!(!s.contains('e'), "{s}");
+    s.split_once('.').map_or(0, |(_, d)| d.len())
+}
+
+#[test]
+fn move_json_is_rounded_to_its_resolution() {
+    let out = host_sim(&["move", "--to-um", "10", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    // Times to 1 ns, positions to 0.1 nm (1e-4 µm), forces to 1e-4 N.
+    assert!(v["settle_time_s"].is_number(), "{v}");
+    for (key, most) in [
+        ("settle_time_s", 9),
+        ("on_target_time_s", 9),
+        ("final_error_nm", 1),
+        ("overshoot_nm", 1),
+        ("from_um", 4),
+        ("max_following_error_um", 4),
+        ("preload_n", 4),
+    ] {
+        assert!(decimals(&v[key]) <= most, "{key} = {}", v[key]);
+    }
+    // The force cell reads the preload the plant was given, 16 N, to within its resolution.
+    assert!((v["preload_n"].as_f64().unwrap() - 16.0).abs() < 0.01, "{v}");
+    assert!(v["slide_back_nm"].is_null(), "no fault, no slide back: {v}");
+    let out = host_sim(&["curve", "--points", "2", "--json"]);
+    let c: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(decimals(&c["stall_force_n"]) <= 4 && decimals(&c["points"][1]["load_n"]) <= 4, "{c}");
+}
+
+#[test]
+fn a_stall_fault_reports_the_slide_back() {
+    // Plain PI against an unknown 2 N load: the slider reaches the target, coasts past it and
+    // then slides back under the load until the stall fault trips.
+    let out = host_sim(&["move", "--to-um", "1000", "--load-n", "2", "--no-feedforward", "--json"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["fault"]["code"], 2, "{v}");
+    let back = v["slide_back_nm"].as_f64().expect("slide back reported on a fault");
+    let over = v["overshoot_nm"].as_f64().unwrap();
+    let final_err = v["final_error_nm"].as_f64().unwrap();
+    // It ends behind the target: from its farthest point (at least target + overshoot) it went
+    // back at least overshoot − final error.
+    assert!(final_err < 0.0, "{v}");
+    assert!(back >= over - final_err - 0.2, "{v}");
+    // The text output says so too.
+    let text = host_sim(&["move", "--to-um", "1000", "--load-n", "2", "--no-feedforward"]);
+    assert!(String::from_utf8_lossy(&text.stdout).contains("slid back"));
+}
+
+#[test]
+fn every_option_of_every_subcommand_has_help_text() {
+    let top = String::from_utf8(host_sim(&["--help"]).stdout).unwrap();
+    let subcommands: Vec<String> = top
+        .lines()
+        .skip_while(|l| !l.starts_with("Commands:"))
+        .skip(1)
+        .take_while(|l| l.starts_with("  "))
+        .filter_map(|l| l.split_whitespace().next().map(str::to_string))
+        .filter(|s| s != "help")
+        .collect();
+    assert!(subcommands.len() >= 10, "{subcommands:?}");
+    for sub in subcommands {
+        let help = String::from_utf8(host_sim(&[&sub, "--help"]).stdout).unwrap();
+        let lines: Vec<&str> = help.lines().skip_while(|l| !l.starts_with("Options:")).skip(1).collect();
+        for (i, line) in lines.iter().enumerate() {
+            let t = line.trim_start();
+            // Option lines: "--flag" or "-h, --help" (not the "- value: ..." lists of values).
+            let option = t.starts_with("--") || t.as_bytes().get(1).is_some_and(u8::is_ascii_alphabetic);
+            if !t.starts_with('-') || !option {
+                continue;
+            }
+            // "--flag <VALUE>  Description", or the description alone on the next line.
+            let inline = t.split_once("  ").is_some_and(|(_, d)| !d.trim().is_empty());
+            let next = lines.get(i + 1).map_or("", |l| l.trim());
+            let described = inline || (!next.is_empty() && !next.starts_with('-'));
+            assert!(described, "host-sim {sub}: option without help text: {line}");
+        }
+    }
+}

@@ -18,7 +18,7 @@ pub mod report;
 use crate::effects::{Condition, EFFECT_NAMES};
 use crate::measured_csv::MeasuredRow;
 use crate::params::Params;
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use fit::{
     covariance, effect_params, fit as lm_fit, named_values, Data, Fit, Model, BASE_NAMES, BASE_PARAMS,
 };
@@ -678,7 +678,13 @@ pub struct GapArgs {
 
 pub fn run(args: GapArgs, params: &Params) -> Result<()> {
     let rows = crate::measured_csv::read(&args.measured)?;
-    let bar = indicatif::ProgressBar::new(1);
+    // The report directory before the work, so a bad path costs nothing.
+    crate::check::output_dir("--out", &args.out)?;
+    let bar = if crate::check::show_progress() {
+        indicatif::ProgressBar::new(1)
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
     bar.set_style(
         indicatif::ProgressStyle::with_template("gap {spinner} [{elapsed}] {bar:30} {pos}/{len} {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
@@ -690,7 +696,6 @@ pub fn run(args: GapArgs, params: &Params) -> Result<()> {
         bar.set_position(done as u64);
     })?;
     bar.finish_and_clear();
-    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create {}", args.out.display()))?;
     report::write_all(&report, &rows, params, &args.measured, &args.out)?;
     if args.json {
         use std::io::Write;

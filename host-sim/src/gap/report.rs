@@ -299,8 +299,11 @@ fn curves_plot(r: &GapReport, rows: &[MeasuredRow], path: &Path) -> Result<()> {
             .map_err(|x| e(Box::new(x)))?
             .label("measured")
             .legend(|(x, y)| Circle::new((x + 10, y), 4, RED.filled()));
+        // Speeds fall with load: the lower left of each panel is empty, the upper right is not
+        // always (a near-flat curve), so the legend goes lower left, clear of the measured points.
         chart
             .configure_series_labels()
+            .position(SeriesLabelPosition::LowerLeft)
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
             .label_font(("sans-serif", 12))
