@@ -7,7 +7,7 @@
 //! - [`profile`]: online trapezoidal motion profile;
 //! - [`controller`]: state machine, position control, supervision; one entry point `step`;
 //! - [`storage`]: the flash parameter record (encode/decode with version and CRC);
-//! - [`gcs`]: the UART command protocol (interim minimal set until the protocol issue lands);
+//! - [`gcs`]: the PI GCS 2.0 command protocol (UART on the board, TCP or a pty in `host-sim serve`);
 //! - [`defaults`]: the firmware's default settings, with the baked motor table [`motor_table`].
 #![no_std]
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]

@@ -8,7 +8,7 @@
 //! command (`SPA`, `VEL`, `ACC`, `DEC`: `Gcs::is_settings_only`) is parsed and checked on a copy
 //! too, and only `Controller::set_config` runs locked. Every other command that changes the
 //! controller runs with it locked (parse, check, set: about 1 000 instructions). Measured on the
-//! emulated M4: `tools/m4-count` (README, Loop timing).
+//! emulated M4: `tools/pil/run` (README, Loop timing).
 
 use embassy_stm32::usart::BufferedUart;
 use embedded_io_async::{Read, Write};

@@ -51,7 +51,7 @@ pub fn hot_paths() {
     // Controller step: a 1 mm move at 16 N preload with the encoder following the reference,
     // then holding.
     let mut cfg_ff = cfg;
-    // `NOFF=1 tools/m4-count/run`: the same move with plain PI feedback (feedforward off).
+    // `NOFF=1 tools/pil/run`: the same move with plain PI feedback (feedforward off).
     if option_env!("NOFF").is_some() {
         cfg_ff.feedforward = false;
     }
