@@ -18,7 +18,7 @@
 use crate::params::Params;
 use crate::roots::falling_root;
 use crate::steady::{OperatingPoint, ThrustModel};
-use anyhow::{bail, Result};
+use anyhow::{anyhow, bail, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::f64::consts::{PI, TAU};
@@ -135,6 +135,16 @@ pub const EFFECT_NAMES: [&str; 7] = [
     "stator_resonance",
     "hertz_contact",
 ];
+
+/// The library's own (`'static`) name for `name`; an unknown name is an error that names it and
+/// the known ones, on one line. Every effect name a user gives goes through here.
+pub fn effect_name(name: &str) -> Result<&'static str> {
+    EFFECT_NAMES
+        .iter()
+        .copied()
+        .find(|n| *n == name)
+        .ok_or_else(|| anyhow!("unknown effect '{name}' (known: {})", EFFECT_NAMES.join(", ")))
+}
 
 /// Every parameter name any effect knows, with the effect it belongs to.
 pub const PARAM_NAMES: [(&str, &str); 13] = [

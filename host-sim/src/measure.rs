@@ -144,12 +144,7 @@ pub fn parse_effect_spec(spec: &str, effects: &mut Effects) -> Result<()> {
     let (name, rest) = spec
         .split_once(':')
         .ok_or_else(|| anyhow!("--effect '{spec}': expected NAME:param=value[,param=value]"))?;
-    if !crate::effects::EFFECT_NAMES.contains(&name) {
-        bail!(
-            "--effect '{spec}': unknown effect '{name}' (known: {})",
-            crate::effects::EFFECT_NAMES.join(", ")
-        );
-    }
+    let name = crate::effects::effect_name(name).map_err(|e| anyhow!("--effect '{spec}': {e}"))?;
     for kv in rest.split(',') {
         let (k, v) = kv
             .split_once('=')

@@ -124,3 +124,20 @@ fn measure_then_gap_end_to_end() {
     let md = std::fs::read_to_string(out_dir.join("report.md")).unwrap();
     assert!(md.contains("amplifier_rolloff") && md.contains("curves.svg"));
 }
+
+/// `measure --effect` with a name the library does not know: one line naming it and the known
+/// ones, a non-zero exit, no file written.
+#[test]
+fn measure_refuses_an_unknown_effect_name() {
+    let csv = tmp("unknown-effect.csv");
+    let m = host_sim(&["measure", "--effect", "rail:rail_coulomb_n=1", "--out", csv.to_str().unwrap()]);
+    assert!(!m.status.success());
+    let err = String::from_utf8_lossy(&m.stderr);
+    assert_eq!(
+        err.trim_end(),
+        "error: --effect 'rail:rail_coulomb_n=1': unknown effect 'rail' (known: rail_friction, \
+         assembly_asymmetry, preload_dependent_friction, stribeck_friction, amplifier_rolloff, \
+         stator_resonance, hertz_contact)"
+    );
+    assert!(!csv.exists(), "nothing written");
+}

@@ -4,6 +4,7 @@
 
 use host_sim::gap::{analyze, GapReport, Options};
 use host_sim::measure::{synthesize, Grid};
+use host_sim::measured_csv::MeasuredRow;
 use host_sim::params::Params;
 
 /// The base file the workflow is given: μ +10 %, λ −10 %, ρ +10 % against the truth.
@@ -194,4 +195,34 @@ fn an_inseparable_pair_is_reported_as_one_ambiguity_group_with_the_true_effect()
     let full = run(&truth, &Grid::paper(), 1.0, 7);
     assert_eq!(full.named_effects.first().map(String::as_str), Some("stribeck_friction"));
     assert!(full.ambiguity.iter().all(|a| !a.effects.iter().any(|e| e == "stribeck_friction")));
+}
+
+/// An effect name the library does not know is an error naming it and the known ones, before any
+/// work (it used to be fitted silently as `rail_friction`).
+#[test]
+fn an_unknown_effect_in_the_library_is_an_error() {
+    let opts = Options { library: vec!["rail_friction", "rail_fricton"], ..Options::default() };
+    // Rows the workflow would accept (eight, positive mean speed): the name is what it refuses.
+    let rows: Vec<MeasuredRow> = (0..8)
+        .map(|i| MeasuredRow {
+            line: i + 2,
+            preload_n: 16.0,
+            voltage_v: 100.0,
+            frequency_hz: 1500.0,
+            load_n: f64::from(i as u8),
+            direction: 1,
+            velocity_mm_s: 40.0 - 4.0 * i as f64,
+        })
+        .collect();
+    let e = analyze(&Params::prototype(), &rows, &opts, &|_, _, _| {}).expect_err("unknown effect refused");
+    let text = format!("{e:#}");
+    assert_eq!(
+        text,
+        "effect library: unknown effect 'rail_fricton' (known: rail_friction, assembly_asymmetry, \
+         preload_dependent_friction, stribeck_friction, amplifier_rolloff, stator_resonance, hertz_contact)"
+    );
+    // Every known name is accepted.
+    assert!(host_sim::effects::EFFECT_NAMES
+        .iter()
+        .all(|n| host_sim::effects::effect_name(n).ok() == Some(*n)));
 }

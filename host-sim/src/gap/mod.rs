@@ -15,10 +15,10 @@
 pub mod fit;
 pub mod report;
 
-use crate::effects::{Condition, EFFECT_NAMES};
+use crate::effects::{effect_name, Condition, EFFECT_NAMES};
 use crate::measured_csv::MeasuredRow;
 use crate::params::Params;
-use anyhow::{bail, Result};
+use anyhow::{anyhow, bail, Result};
 use fit::{
     covariance, effect_params, fit as lm_fit, named_values, Data, Fit, Model, BASE_NAMES, BASE_PARAMS,
 };
@@ -41,7 +41,8 @@ pub struct Options {
     /// ΔBIC margin within which candidates form an ambiguity group (candidates whose refits both
     /// leave residuals consistent with noise are grouped whatever their ΔBIC).
     pub ambiguity_bic: f64,
-    /// Which effects the library offers (default: all).
+    /// Which effects the library offers (default: all); a name that is not in
+    /// [`EFFECT_NAMES`] makes [`analyze`] fail.
     pub library: Vec<&'static str>,
 }
 
@@ -69,6 +70,9 @@ pub struct NamedParam {
 #[derive(Debug, Clone, Serialize)]
 pub struct Candidate {
     pub name: String,
+    /// The library's name of the effect (the same as `name`).
+    #[serde(skip)]
+    pub effect: &'static str,
     /// Round of the workflow (1 = against the calibrated base model).
     pub round: usize,
     /// Score statistic at zero strength (χ², larger = more of the residual it could explain).
@@ -235,7 +239,7 @@ fn ratio(fit: &Fit, n: usize, p: usize, s: f64) -> f64 {
 }
 
 /// Score statistic of adding `name` to the model at its fit.
-fn score(state: &State, name: &str, data: &Data) -> f64 {
+fn score(state: &State, name: &'static str, data: &Data) -> f64 {
     let rows = all_rows(data);
     let defs = effect_params(name);
     let jb = &state.fit.jac;
@@ -243,7 +247,7 @@ fn score(state: &State, name: &str, data: &Data) -> f64 {
     let a = jb.transpose() * jb;
     let Some(a_inv) = a.try_inverse() else { return 0.0 };
     let mut ext = state.model.clone();
-    ext.effects.push(leak(name));
+    ext.effects.push(name);
     let knees: Vec<f64> = if name == "preload_dependent_friction" {
         candidate_starts(&state.fit.x, name, data).iter().map(|s| s[s.len() - 1]).collect()
     } else {
@@ -282,11 +286,6 @@ fn score(state: &State, name: &str, data: &Data) -> f64 {
         best = best.max(u * u / info / (state.s * state.s));
     }
     best
-}
-
-/// Effect names are `'static` in the library; map any borrowed name back to it.
-fn leak(name: &str) -> &'static str {
-    EFFECT_NAMES.iter().copied().find(|n| *n == name).unwrap_or("rail_friction")
 }
 
 /// K-fold cross-validated weighted RMS over held-out curves, warm-started from `x0`.
@@ -377,7 +376,7 @@ fn separating_experiment(group: &[&Candidate], model: &Model, data: &Data, s: f6
         .iter()
         .map(|c| {
             let mut m = model.clone();
-            m.effects.push(leak(&c.name));
+            m.effects.push(c.effect);
             (m, c.fit_x.clone())
         })
         .collect();
@@ -473,6 +472,9 @@ pub fn analyze(
     progress: ProgressFn,
 ) -> Result<GapReport> {
     let t0 = std::time::Instant::now();
+    for name in &opts.library {
+        effect_name(name).map_err(|e| anyhow!("effect library: {e}"))?;
+    }
     let data = Data::from_rows(rows);
     let n = data.len();
     if n < 8 {
@@ -531,6 +533,7 @@ pub fn analyze(
                 progress(&label, d, todo.len());
                 Candidate {
                     name: name.to_string(),
+                    effect: name,
                     round,
                     score: sc,
                     score_rank: 0,
@@ -580,7 +583,7 @@ pub fn analyze(
             });
         }
         cands[best].accepted = true;
-        let name = leak(&cands[best].name);
+        let name = cands[best].effect;
         let mut model = state.model.clone();
         model.effects.push(name);
         let mut fit = lm_fit(&model, &data, &all, &[cands[best].fit_x.clone()], 40);
