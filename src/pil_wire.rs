@@ -2,7 +2,7 @@
 //! `host-sim pil` (the plant) and `tools/pil` (this core on an emulated Cortex-M4F). Both sides
 //! encode and decode with these functions, so they cannot disagree on the layout. Little-endian.
 
-use crate::controller::{Inputs, Outputs, State, DAC_SAMPLES_PER_STEP};
+use crate::controller::{FaultCode, Inputs, Outputs, State, DAC_SAMPLES_PER_STEP};
 
 /// Host → target: a command for this period (applied before the step) and the sensor inputs.
 pub const TICK_BYTES: usize = 16;
@@ -50,16 +50,38 @@ pub fn state_code(s: State) -> u8 {
     }
 }
 
+/// The state a [`state_code`] stands for; `None` for a byte no state encodes to.
+pub fn decode_state(code: u8) -> Option<State> {
+    const FAULTS: [FaultCode; 7] = [
+        FaultCode::FollowingError,
+        FaultCode::Stall,
+        FaultCode::PreloadOutOfWindow,
+        FaultCode::PreloadSensor,
+        FaultCode::EncoderJump,
+        FaultCode::Overrun,
+        FaultCode::EncoderLoss,
+    ];
+    match code {
+        0 => Some(State::Idle),
+        1 => Some(State::Moving),
+        2 => Some(State::Holding),
+        3 => Some(State::Referencing),
+        4 => Some(State::OpenLoop),
+        c if c & 0x80 != 0 => FAULTS.into_iter().find(|f| *f as u8 == c & 0x7f).map(State::Fault),
+        _ => None,
+    }
+}
+
 /// Name of a [`state_code`] for reports.
 pub fn state_name(code: u8) -> &'static str {
-    match code {
-        0 => "idle",
-        1 => "moving",
-        2 => "holding",
-        3 => "referencing",
-        4 => "open_loop",
-        c if c & 0x80 != 0 => "fault",
-        _ => "unknown",
+    match decode_state(code) {
+        Some(State::Idle) => "idle",
+        Some(State::Moving) => "moving",
+        Some(State::Holding) => "holding",
+        Some(State::Referencing) => "referencing",
+        Some(State::OpenLoop) => "open_loop",
+        Some(State::Fault(_)) => "fault",
+        None => "unknown",
     }
 }
 

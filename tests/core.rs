@@ -293,5 +293,22 @@ fn pil_frames_round_trip_and_reject_unknown_commands() {
     };
     assert_eq!(decode_reply(&encode_reply(&r)), r);
     assert_eq!(state_name(r.state), "fault");
+    // Every state the controller can be in comes back from its byte; other bytes are refused.
+    let faults = [
+        FaultCode::FollowingError,
+        FaultCode::Stall,
+        FaultCode::PreloadOutOfWindow,
+        FaultCode::PreloadSensor,
+        FaultCode::EncoderJump,
+        FaultCode::Overrun,
+        FaultCode::EncoderLoss,
+    ];
+    let states = [State::Idle, State::Moving, State::Holding, State::Referencing, State::OpenLoop];
+    for s in states.into_iter().chain(faults.into_iter().map(State::Fault)) {
+        assert_eq!(decode_state(state_code(s)), Some(s));
+    }
+    assert_eq!(decode_state(5), None);
+    assert_eq!(decode_state(0x80), None);
+    assert_eq!(state_name(0x80), "unknown");
     assert_eq!(r.state & 0x7f, FaultCode::EncoderJump as u8);
 }

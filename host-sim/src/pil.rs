@@ -11,7 +11,7 @@ use crate::params::Params;
 use crate::plant::ExternalLoad;
 use crate::sil::{controller_config, Sil};
 use anyhow::{anyhow, bail, Context, Result};
-use piezo_drive::controller::{FaultCode, Inputs, Outputs, State};
+use piezo_drive::controller::{Inputs, Outputs, State};
 use piezo_drive::pil_wire::{self, Command, Reply, Tick, REPLY_BYTES};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -224,25 +224,20 @@ impl Target {
         let _ = self
             .to_target
             .write_all(&pil_wire::encode_tick(&Tick { command: Command::Exit, inputs: Inputs::default() }));
-        let _ = self.qemu.wait_timeout_or_kill(Duration::from_secs(5));
+        wait_or_kill(&mut self.qemu, Duration::from_secs(5));
     }
 }
 
-trait WaitTimeout {
-    fn wait_timeout_or_kill(&mut self, limit: Duration) -> std::io::Result<()>;
-}
-
-impl WaitTimeout for Child {
-    fn wait_timeout_or_kill(&mut self, limit: Duration) -> std::io::Result<()> {
-        let start = std::time::Instant::now();
-        while start.elapsed() < limit {
-            if self.try_wait()?.is_some() {
-                return Ok(());
-            }
-            std::thread::sleep(Duration::from_millis(20));
+/// Waits up to `limit` for `child` to exit, then kills it.
+fn wait_or_kill(child: &mut Child, limit: Duration) {
+    let start = std::time::Instant::now();
+    while start.elapsed() < limit {
+        if child.try_wait().ok().flatten().is_some() {
+            return;
         }
-        self.kill()
+        std::thread::sleep(Duration::from_millis(20));
     }
+    let _ = child.kill();
 }
 
 /// The safe state of the outputs: enable off and, by the end of the period, both words within
@@ -393,20 +388,11 @@ pub fn run(p: &Params, args: &PilArgs, elf: &Path) -> Result<PilResult> {
                 result.fault_safe_after_ticks = Some(result.ticks - *n + 1);
             }
             if result.fault.is_none() {
-                let code = reply.state & 0x7f;
-                let text = [
-                    FaultCode::FollowingError,
-                    FaultCode::Stall,
-                    FaultCode::PreloadOutOfWindow,
-                    FaultCode::PreloadSensor,
-                    FaultCode::EncoderJump,
-                    FaultCode::Overrun,
-                    FaultCode::EncoderLoss,
-                ]
-                .into_iter()
-                .find(|c| *c as u8 == code)
-                .map_or("unknown fault", |c| c.text());
-                result.fault = Some(FaultReport { code, text });
+                let text = match pil_wire::decode_state(reply.state) {
+                    Some(State::Fault(code)) => code.text(),
+                    _ => "unknown fault",
+                };
+                result.fault = Some(FaultReport { code: reply.state & 0x7f, text });
             }
             // A few periods more to see the outputs settle into the safe state.
             if result.ticks - *n >= 3 {

@@ -76,18 +76,18 @@ pub fn one_period(p: &Params, op: OperatingPoint, load_n: f64, samples: usize) -
     let mut foot_x = 0.0;
     let mut raw = Vec::with_capacity(steps / every + 1);
     let (mut contact_steps, mut stick_steps) = (0usize, 0usize);
+    // Stick: slider and foot move together to within 1 % of the foot's peak speed.
+    let stick_band_m_s = 0.01
+        * crate::steady::amplitudes(p, op.voltage_v, op.frequency_hz).xc_m
+        * std::f64::consts::TAU
+        * op.frequency_hz;
     for i in 0..steps {
         plant.step(&mut drive);
         foot_x += plant.foot_speed_m_s() * dt;
         let in_contact = plant.contact_force_n() > 0.0;
         if in_contact {
             contact_steps += 1;
-            // Stick: slider and foot move together to within 1 % of the foot's peak speed.
-            let scale = 0.01
-                * crate::steady::amplitudes(p, op.voltage_v, op.frequency_hz).xc_m
-                * std::f64::consts::TAU
-                * op.frequency_hz;
-            if (plant.slider_velocity_m_s() - plant.foot_speed_m_s()).abs() <= scale {
+            if (plant.slider_velocity_m_s() - plant.foot_speed_m_s()).abs() <= stick_band_m_s {
                 stick_steps += 1;
             }
         }
