@@ -412,6 +412,7 @@ fn run(cli: Cli) -> Result<()> {
             }
         }
         Command::Pil(args) => {
+            host_sim::pil::validate(&args)?;
             let elf = match &args.elf {
                 Some(path) => path.clone(),
                 None => host_sim::pil::build_target(&mut |what| eprintln!("pil: {what}..."))?,

@@ -6,6 +6,7 @@
 //! tick took. The host build of the same core runs beside it on the same inputs: every period
 //! whose outputs differ is counted (`sil_mismatch_ticks`).
 
+use crate::check;
 use crate::moves::FaultReport;
 use crate::params::Params;
 use crate::plant::ExternalLoad;
@@ -247,17 +248,18 @@ fn is_safe(out: &Outputs, mid: u16) -> bool {
     !out.amp_enable && last.iter().all(|&w| (i32::from(w) - i32::from(mid)).abs() <= 1)
 }
 
+/// The arguments, checked with the same rules and words as every other subcommand (before the
+/// target is built or started).
+pub fn validate(args: &PilArgs) -> Result<()> {
+    check::position_um("--to-um", args.to_um)?;
+    check::preload_n("--preload-n", args.preload_n)?;
+    check::load_n("--load-n", args.load_n)?;
+    Ok(())
+}
+
 /// One closed-loop move with the control code on the emulated M4.
 pub fn run(p: &Params, args: &PilArgs, elf: &Path) -> Result<PilResult> {
-    if !args.to_um.is_finite() || args.to_um.abs() > 50_000.0 {
-        bail!("--to-um must be a position within ±50000 µm, got {}", args.to_um);
-    }
-    if !(args.preload_n.is_finite() && args.preload_n > 0.0 && args.preload_n <= 60.0) {
-        bail!("--preload-n must be in (0, 60] N, got {}", args.preload_n);
-    }
-    if !(args.load_n.is_finite() && args.load_n.abs() <= 20.0) {
-        bail!("--load-n must be within ±20 N, got {}", args.load_n);
-    }
+    validate(args)?;
     // The target boots with the firmware's defaults: the plant must be the motor they describe.
     let cfg = controller_config(p);
     if cfg != piezo_drive::defaults::controller_config() {

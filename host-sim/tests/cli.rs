@@ -165,6 +165,8 @@ fn the_same_bad_value_gets_the_same_message_from_every_subcommand() {
         &["curve", "--preload-n", "-5"][..],
         &["trace", "--preload-n", "-5"][..],
         &["move", "--to-um", "10", "--preload-n", "-5"][..],
+        // Refused before the target program is built or QEMU started.
+        &["pil", "--to-um", "10", "--preload-n", "-5"][..],
         &["serve", "--tcp", "127.0.0.1:0", "--preload-n", "-5", "--duration-s", "1"][..],
     ] {
         assert_eq!(one_line_failure(args), expected, "{args:?}");
@@ -179,6 +181,7 @@ fn the_same_bad_value_gets_the_same_message_from_every_subcommand() {
     let expected_load = "error: --load-n must be in [-20, 20] N, got 25";
     assert_eq!(one_line_failure(&["move", "--to-um", "10", "--load-n", "25"]), expected_load);
     assert_eq!(one_line_failure(&["trace", "--load-n", "25"]), expected_load);
+    assert_eq!(one_line_failure(&["pil", "--to-um", "10", "--load-n", "25"]), expected_load);
 }
 
 /// Each of these would simulate for a long time before writing; a bad output path must stop it
