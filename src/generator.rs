@@ -56,7 +56,9 @@ impl Levels {
         // amplitude (< 2²⁸) × sine (Q30): one 32×32→64 multiply.
         let ac = ((i64::from(amp_q16) * i64::from(sin_turn_q30(phase))) >> 30) as i32;
         let v = clamp_i32(self.mid + dc_q16 + ac, self.min, self.max);
-        ((v + 32768) >> 16).clamp(0, i32::from(DacConfig::DAC_MAX_WORD)) as u16
+        // min..max lie within the DAC's words (`volts_to_q16` clamps them), so the rounded word
+        // is within 0..=4095 without a second clamp.
+        ((v + 32768) >> 16) as u16
     }
 }
 
@@ -119,6 +121,11 @@ impl QuadratureGenerator {
         } else {
             self.cfg.min_freq_hz
         };
+        if f == self.freq_hz && self.step != 0 {
+            // The same frequency as now: the step is already right (and its f64 and 64-bit
+            // division are software on the Cortex-M4F).
+            return;
+        }
         self.freq_hz = f;
         let rate = u64::from(self.cfg.sample_rate_hz.max(1));
         self.step = ((f64::from(f) * 4_294_967_296.0) as u64 / rate) as u32;
@@ -166,6 +173,11 @@ impl QuadratureGenerator {
     /// so the foot moves at a constant speed within a control period (fine positioning: a
     /// stuck foot must not jerk the slider).
     pub fn ramp_static_offsets_v(&mut self, offsets: [f32; 2], samples: u32) {
+        if offsets == [0.0; 2] && self.static_target_q16 == [0; 2] && self.static_q16 == [0; 2] {
+            // Already resting at mid-range (every coarse period once the offset is recentred):
+            // a new ramp would change nothing the outputs show.
+            return;
+        }
         self.set_static_offsets_v(offsets);
         let n = samples.clamp(1, 1 << 16) as i32;
         for ((step, target), now) in
@@ -267,6 +279,14 @@ impl QuadratureGenerator {
         let (mut phase, mut amp) = (self.phase, self.amp_q16);
         let [mut dc1, mut dc2] = self.static_q16;
         let [t1, t2] = self.static_target_q16;
+        if amp == 0 && amp_t == 0 && [dc1, dc2] == [t1, t2] {
+            // No sine (quiet, or the static fine mode): the same two words all period long; the
+            // phase runs on as it would.
+            let words = [l.word(phase, dc1, 0), l.word(phase, dc2, 0)];
+            buf.fill(words);
+            self.phase = phase.wrapping_add(step.wrapping_mul(buf.len() as u32));
+            return;
+        }
         if amp == amp_t && [dc1, dc2] == [t1, t2] {
             // Nothing slewing (the common case in a steady drive): only the phase advances.
             for s in buf.iter_mut() {
@@ -274,6 +294,18 @@ impl QuadratureGenerator {
                 phase = phase.wrapping_add(step);
             }
             self.phase = phase;
+            return;
+        }
+        if [dc1, dc2] == [t1, t2] {
+            // Only the amplitude slews (the feedforward moved it, the usual case while moving):
+            // the offsets stay where they are.
+            for s in buf.iter_mut() {
+                amp += clamp_i32(amp_t - amp, -slew, slew);
+                *s = [l.word(phase, dc1, amp), l.word(phase.wrapping_add(offset), dc2, amp)];
+                phase = phase.wrapping_add(step);
+            }
+            self.phase = phase;
+            self.amp_q16 = amp;
             return;
         }
         let [l1, l2] = self.static_step_q16.map(|s| if s > 0 { s.min(slew) } else { slew });

@@ -21,7 +21,7 @@ mod board {
     use piezo_drive::defaults;
     use piezo_drive::safety::fault_record::FaultKind;
 
-    use crate::firmware::{control, encoder, params_flash, preload, safety, uart};
+    use crate::firmware::{control, encoder, model, params_flash, preload, safety, uart};
 
     bind_interrupts!(struct Irqs {
         LPUART1 => usart::BufferedInterruptHandler<peripherals::LPUART1>;
@@ -133,6 +133,7 @@ mod board {
 
         spawn(&spawner, "preload", spawner.spawn(preload::preload_task(cell)));
         spawn(&spawner, "uart", spawner.spawn(uart::uart_task(serial)));
+        spawn(&spawner, "model", spawner.spawn(model::model_task()));
         if let Some(flash) = flash {
             spawn(&spawner, "flash", spawner.spawn(params_flash::flash_task(flash, defaults)));
         } else {

@@ -36,6 +36,9 @@ pub struct Reply {
     /// Instructions of the whole tick (step + packing the DMA half-buffer) and of the step alone.
     pub tick_instructions: u32,
     pub step_instructions: u32,
+    /// Instructions of the lower-rate work done after the step (the model table, when the
+    /// controller asked for one; 0 otherwise): on the board a thread-mode task, not the tick.
+    pub background_instructions: u32,
 }
 
 /// One byte per state: 0 idle, 1 moving, 2 holding, 3 referencing, 4 open loop, 0x80 + fault code.
@@ -153,6 +156,7 @@ pub fn encode_reply(r: &Reply) -> [u8; REPLY_BYTES] {
     put(&mut b, at, &[u8::from(r.outputs.amp_enable), r.state, u8::from(r.command_refused), 0]);
     put(&mut b, at + 4, &r.tick_instructions.to_le_bytes());
     put(&mut b, at + 8, &r.step_instructions.to_le_bytes());
+    put(&mut b, at + 12, &r.background_instructions.to_le_bytes());
     b
 }
 
@@ -169,5 +173,6 @@ pub fn decode_reply(b: &[u8; REPLY_BYTES]) -> Reply {
         command_refused: refused != 0,
         tick_instructions: u32::from_le_bytes(get::<4>(b, at + 4)),
         step_instructions: u32::from_le_bytes(get::<4>(b, at + 8)),
+        background_instructions: u32::from_le_bytes(get::<4>(b, at + 12)),
     }
 }

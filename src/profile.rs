@@ -51,11 +51,10 @@ impl Profile {
 
     /// Advances one period `dt_s`: speeds up at most at `accel`, slows down at most at `decel`
     /// (a piezo motor brakes harder than it accelerates: reverse drive adds to the friction).
-    pub fn step(&mut self, dt_s: f32, v_max_nm_s: f32, accel_nm_s2: f32, decel_nm_s2: f32) {
+    pub fn step(&mut self, dt_s: f32, v_max_nm_s: f32, accel_nm_s2: impl FnOnce() -> f32, decel_nm_s2: f32) {
         if self.done {
             return;
         }
-        let a_up = accel_nm_s2.max(1.0);
         let a_down = decel_nm_s2.max(1.0);
         let rem = (self.target_nm - self.pos_nm) as f32 - self.frac_nm;
         let dir = if rem >= 0.0 { 1.0 } else { -1.0 };
@@ -65,7 +64,7 @@ impl Profile {
         let v_stop = sqrt_f32(2.0 * a_down * rem.abs() + half * half) - half;
         let v_des = dir * v_max_nm_s.max(0.0).min(v_stop.max(0.0));
         let speeding_up = v_des * self.vel_nm_s >= 0.0 && v_des.abs() > self.vel_nm_s.abs();
-        let a = if speeding_up { a_up } else { a_down };
+        let a = if speeding_up { accel_nm_s2().max(1.0) } else { a_down };
         let dv = crate::fastmath::clamp_sym_f32(v_des - self.vel_nm_s, a * dt_s);
         self.vel_nm_s += dv;
         let step = self.vel_nm_s * dt_s;

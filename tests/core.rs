@@ -189,7 +189,7 @@ fn profile_respects_limits_reaches_the_target_and_replans() {
     let mut last_v = 0.0f32;
     let mut steps = 0;
     while !p.done() {
-        p.step(dt, v_max, a_max, a_max);
+        p.step(dt, v_max, || a_max, a_max);
         let v = p.velocity_nm_s();
         assert!(v.abs() <= v_max * 1.0001, "speed {v}");
         if p.done() {
@@ -215,12 +215,12 @@ fn profile_respects_limits_reaches_the_target_and_replans() {
     let mut p = Profile::at_rest(0);
     p.set_target(1_000_000);
     for _ in 0..1000 {
-        p.step(dt, v_max, a_max, a_max);
+        p.step(dt, v_max, || a_max, a_max);
     }
     p.set_target(-200_000);
     let mut turned = false;
     for _ in 0..20_000 {
-        p.step(dt, v_max, a_max, a_max);
+        p.step(dt, v_max, || a_max, a_max);
         turned |= p.velocity_nm_s() < 0.0;
         if p.done() {
             break;
@@ -290,6 +290,7 @@ fn pil_frames_round_trip_and_reject_unknown_commands() {
         command_refused: true,
         tick_instructions: 123_456,
         step_instructions: 99_999,
+        background_instructions: 70_001,
     };
     assert_eq!(decode_reply(&encode_reply(&r)), r);
     assert_eq!(state_name(r.state), "fault");

@@ -53,6 +53,8 @@ impl Rig {
     fn steps(&mut self, n: usize, extra: Inputs) {
         for _ in 0..n {
             self.ctl.step(&Inputs { encoder_raw: self.encoder, preload_word: PRELOAD_WORD, ..extra });
+            // The board's lower-rate task (the model table), between ticks.
+            self.ctl.background();
         }
     }
 

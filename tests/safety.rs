@@ -177,6 +177,7 @@ fn idle_controller() -> Controller {
     let mut ctl = Controller::new(defaults::controller_config()).unwrap();
     for _ in 0..10 {
         ctl.step(&Inputs { preload_word: PRELOAD_WORD, ..Default::default() });
+        ctl.background();
     }
     ctl
 }
@@ -264,6 +265,8 @@ fn every_query_gives_the_same_reply_on_a_copy_and_leaves_the_controller_alone() 
         let a = ctl.step(&inputs);
         let b = twin.step(&inputs);
         assert_eq!(a, b, "step {k}");
+        ctl.background();
+        twin.background();
     }
     assert_eq!(ctl.state(), twin.state());
 }
@@ -507,6 +510,8 @@ fn fine_mode_run(encoder_follows: bool) -> Controller {
             counts = (ctl.fine_offset_v() * nm_per_v / 50.0).round() as i64;
         }
         ctl.step(&Inputs { preload_word: PRELOAD_WORD, encoder_raw: counts as u16, ..Default::default() });
+        // The board's lower-rate task (the model table), between ticks.
+        ctl.background();
     }
     ctl
 }
@@ -636,6 +641,8 @@ fn settings_commands_on_a_copy_then_set_config_equal_running_them_directly() {
         for k in 0..100u16 {
             let inputs = Inputs { preload_word: PRELOAD_WORD, encoder_raw: k / 8, ..Default::default() };
             assert_eq!(real.step(&inputs), direct.step(&inputs));
+            real.background();
+            direct.background();
         }
     }
     // Not settings-only: motion, servo, queries, stores.

@@ -447,6 +447,10 @@ fn run(cli: Cli) -> Result<()> {
                     r.step_instructions_mean,
                     r.step_instructions_max
                 );
+                println!(
+                    "model table (thread-mode task on the board, not the tick): built {} times, max {} instructions",
+                    r.background_runs, r.background_instructions_max
+                );
                 for (state, s) in &r.per_state {
                     println!(
                         "  {state:<12} {:>6} ticks, mean {:>6.0}, max {:>6} instructions",

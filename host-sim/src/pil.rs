@@ -88,6 +88,10 @@ pub struct PilResult {
     /// `Controller::step` alone.
     pub step_instructions_mean: f64,
     pub step_instructions_max: u32,
+    /// The lower-rate work after a step (building the model table; a thread-mode task on the
+    /// board, outside the tick): how often it ran and its largest run.
+    pub background_runs: u64,
+    pub background_instructions_max: u32,
     /// Per state the tick ran in (the state before its step).
     pub per_state: BTreeMap<&'static str, StateTicks>,
     /// Periods whose outputs (DAC words, enable) differ between the M4 and the host build.
@@ -297,6 +301,8 @@ pub fn run(p: &Params, args: &PilArgs, elf: &Path) -> Result<PilResult> {
         tick_instructions_max: 0,
         step_instructions_mean: 0.0,
         step_instructions_max: 0,
+        background_runs: 0,
+        background_instructions_max: 0,
         per_state: BTreeMap::new(),
         sil_mismatch_ticks: 0,
         sil_first_mismatch_tick: None,
@@ -319,6 +325,7 @@ pub fn run(p: &Params, args: &PilArgs, elf: &Path) -> Result<PilResult> {
             Command::None | Command::Exit => false,
         };
         let host_out = sil.controller.step(&inputs);
+        sil.controller.background();
         if host_out != reply.outputs || host_refused != reply.command_refused {
             result.sil_mismatch_ticks += 1;
             result.sil_first_mismatch_tick.get_or_insert(result.ticks);
@@ -341,6 +348,11 @@ pub fn run(p: &Params, args: &PilArgs, elf: &Path) -> Result<PilResult> {
         step_total += u64::from(reply.step_instructions);
         result.tick_instructions_max = result.tick_instructions_max.max(reply.tick_instructions);
         result.step_instructions_max = result.step_instructions_max.max(reply.step_instructions);
+        if reply.background_instructions > 0 {
+            result.background_runs += 1;
+            result.background_instructions_max =
+                result.background_instructions_max.max(reply.background_instructions);
+        }
         let s = result.per_state.entry(pil_wire::state_name(state_before)).or_default();
         s.ticks += 1;
         s.total += u64::from(reply.tick_instructions);

@@ -165,6 +165,8 @@ impl Sil {
         let t0 = std::time::Instant::now();
         let out = self.controller.step(&inputs);
         self.last_step_ns = u64::try_from(t0.elapsed().as_nanos()).unwrap_or(u64::MAX);
+        // The board's lower-rate task (the model table), done here between periods.
+        self.controller.background();
         let applied = std::mem::replace(&mut self.pending, out);
         self.apply(&applied);
         out

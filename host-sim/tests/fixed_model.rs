@@ -102,3 +102,85 @@ fn firmware_defaults_equal_the_simulated_board() {
         host_sim::sil::controller_config(&Params::prototype())
     );
 }
+
+/// The tick's model table (`controller::model_cache`, built off the tick) against the f64 model:
+/// thrust between table voltages, the speed table, and the inverse, over the operating grid.
+#[test]
+fn model_table_within_1_percent_of_stall_of_the_f64_model() {
+    use piezo_drive::controller::model_cache::{ModelRequest, ModelTable};
+    let p = Params::prototype();
+    let k = motor_constants(&p);
+    let (mut worst_thrust, mut worst_inverse, mut worst_speed) = (0.0f64, 0.0f64, 0.0f64);
+    for preload_n in [5.0f64, 10.0, 16.0, 20.0] {
+        for frequency_hz in [800.0f64, 1500.0, 2200.0] {
+            let per_volt = k.at_frequency(Fx::from_num(frequency_hz / 1000.0));
+            let request =
+                ModelRequest { per_volt, preload_n: preload_n as f32, max_drive_v: 100.0, generation: 0 };
+            let table = ModelTable::build(&request);
+            let full_op = OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz };
+            let full = ThrustModel::new(&p, full_op);
+            let stall = full.stall_force_n();
+            assert!((f64::from(table.stall_n()) - stall).abs() < 0.01 * stall);
+            // Voltages between the table's points (3.125 V apart), speeds over the foot's range.
+            for voltage_v in [2.2f64, 4.7, 7.0, 12.9, 21.5, 38.9, 50.0, 64.2, 81.7, 99.0] {
+                let op = OperatingPoint { preload_n, voltage_v, frequency_hz };
+                let m = ThrustModel::new(&p, op);
+                for u in [-0.9, -0.4, 0.0, 0.2, 0.5, 0.8, 0.95, 0.995] {
+                    let v = u * m.foot_speed_m_s;
+                    let expected = thrust_n(&p, op, v, 1);
+                    let got = f64::from(table.thrust_n(voltage_v as f32, (v * 1e3) as f32));
+                    let err = (got - expected).abs() / stall;
+                    worst_thrust = worst_thrust.max(err);
+                    assert!(
+                        err < 0.01,
+                        "F0 {preload_n} f {frequency_hz} V {voltage_v} u {u}: table {got} f64 {expected}"
+                    );
+                }
+            }
+            // Speed at full drive against loads between the speed table's points.
+            for share in [0.0, 0.13, 0.31, 0.52, 0.77, 0.93] {
+                let load = share * stall;
+                let expected = full.speed_at_load_m_s(load).unwrap_or(0.0) * 1e3;
+                let got = f64::from(table.speed_at_load_mm_s(load as f32));
+                // As a thrust error: the speed error times the slope of the characteristic.
+                let slope = (thrust_n(&p, full_op, (expected + 0.01) * 1e-3, 1)
+                    - thrust_n(&p, full_op, expected * 1e-3, 1))
+                .abs()
+                    / 0.01;
+                let err = (got - expected).abs() * slope / stall;
+                worst_speed = worst_speed.max(err);
+                assert!(err < 0.01, "F0 {preload_n} f {frequency_hz} load {load}: {got} vs {expected} mm/s");
+            }
+            // The inverse: the f64 model at the voltage found gives the wanted thrust.
+            for (speed_mm_s, share) in [(0.3, 0.1), (0.8, 0.0), (1.2, 0.3), (0.5, 0.6), (1.0, -0.2)] {
+                let load = share * stall;
+                let mut hint = 50.0;
+                for start in [0.0f32, 50.0, 100.0] {
+                    let v = table.voltage_for(speed_mm_s as f32, load as f32, start);
+                    if start == 50.0 {
+                        hint = v;
+                    }
+                    let op = OperatingPoint { preload_n, voltage_v: f64::from(v), frequency_hz };
+                    let thrust = thrust_n(&p, op, speed_mm_s * 1e-3, 1);
+                    if v > 0.0 && v < 100.0 {
+                        let err = (thrust - load).abs() / stall;
+                        worst_inverse = worst_inverse.max(err);
+                        assert!(err < 0.01, "F0 {preload_n} f {frequency_hz} {speed_mm_s} mm/s {load} N: {v} V gives {thrust} N");
+                    } else if v >= 100.0 {
+                        assert!(thrust <= load + 0.01 * stall, "saturated high but {thrust} N > {load} N");
+                    } else {
+                        assert!(thrust >= load - 0.01 * stall, "zero drive but {thrust} N < {load} N");
+                    }
+                }
+                // The same answer from every starting hint.
+                assert!((table.voltage_for(speed_mm_s as f32, load as f32, 3.0) - hint).abs() < 1e-3);
+            }
+        }
+    }
+    eprintln!(
+        "model table vs f64, worst share of stall: thrust {:.3} %, speed table {:.3} %, inverse {:.3} %",
+        100.0 * worst_thrust,
+        100.0 * worst_speed,
+        100.0 * worst_inverse
+    );
+}

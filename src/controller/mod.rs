@@ -10,12 +10,14 @@
 
 use crate::fastmath::{clamp_sym_f32, fx_from_f32};
 use crate::generator::QuadratureGenerator;
-use crate::model::{PerVolt, ThrustPoint};
+use crate::model::PerVolt;
 use crate::profile::Profile;
 use crate::sensors::{Encoder, PreloadCell};
 
 mod config;
+pub mod model_cache;
 pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
+use model_cache::{ModelRequest, ModelTable, PRELOAD_RESOLVE_N};
 
 /// DAC samples produced per control period (DAC rate / loop rate).
 pub const DAC_SAMPLES_PER_STEP: usize = 20;
@@ -128,26 +130,13 @@ enum Mode {
     Fine,
 }
 
-/// The thrust model at full drive and the measured preload, kept between periods. On the
-/// Cortex-M4 a model point costs about a thousand instructions and a speed-at-load root several
-/// thousand, while preload and load estimate change slowly: the point is rebuilt when the
-/// filtered preload moves by more than [`PRELOAD_RESOLVE_N`], the no-load speed and the speed
-/// limit are refreshed on alternate ticks of an 8-period cycle (0.8 ms at 10 kHz).
+/// The controller's copy of the model table (see [`model_cache`]) and what it asks for.
 #[derive(Debug, Clone, Copy)]
-struct ModelCache {
+struct ModelSlot {
     per_volt: PerVolt,
-    full: Option<ThrustPoint>,
-    preload_n: f32,
-    stall_n: f32,
-    /// No-load speed at full drive (mm/s); NaN until computed for this point.
-    no_load_mm_s: f32,
-    /// Speed at full drive against the estimated load in the direction of travel (mm/s), and
-    /// the load it was computed for.
-    speed_limit_mm_s: f32,
-    speed_limit_load_n: f32,
-    /// The point changed since the no-load speed was last computed.
-    no_load_stale: bool,
-    tick: u32,
+    /// Counts accepted configurations: a table built for an older one is refused.
+    generation: u32,
+    table: Option<ModelTable>,
 }
 
 /// Fine-mode encoder-loss check: a correction expected to move at least this many counts that
@@ -155,25 +144,12 @@ struct ModelCache {
 const FINE_LOSS_MIN_COUNTS: i64 = 4;
 const FINE_LOSS_MISSES: u32 = 3;
 
-/// Load-estimate change (N) that recomputes the speed limit (a few µm/s of limit).
-const LOAD_RESOLVE_N: f32 = 0.005;
-
-/// Preload change (N) that rebuilds the cached model point: the model's limits change by well
-/// under 1 % over it, and the force cell's filtered noise stays below it.
-const PRELOAD_RESOLVE_N: f32 = 0.02;
-
-impl ModelCache {
-    fn new(cfg: &ControllerConfig) -> Self {
-        ModelCache {
+impl ModelSlot {
+    fn new(cfg: &ControllerConfig, generation: u32) -> Self {
+        ModelSlot {
             per_volt: cfg.motor.at_frequency(fx_from_f32(cfg.drive_freq_hz / 1000.0)),
-            full: None,
-            preload_n: 0.0,
-            stall_n: 0.0,
-            no_load_mm_s: f32::NAN,
-            speed_limit_mm_s: f32::NAN,
-            speed_limit_load_n: f32::NAN,
-            no_load_stale: true,
-            tick: 0,
+            generation,
+            table: None,
         }
     }
 }
@@ -183,7 +159,7 @@ impl ModelCache {
 #[derive(Clone)]
 pub struct Controller {
     cfg: ControllerConfig,
-    model: ModelCache,
+    model: ModelSlot,
     generator: QuadratureGenerator,
     encoder: Option<Encoder>,
     preload: PreloadCell,
@@ -229,6 +205,11 @@ pub struct Controller {
     open_loop_v: f32,
     open_loop_hz: f32,
     open_loop_dir: i8,
+    /// Control periods since start (wraps): the speed-up limit (a model evaluation) is
+    /// refreshed on odd periods only; the profile's acceleration changes little in 100 µs.
+    tick: u32,
+    /// The speed-up limit from the last odd period (nm/s²).
+    speedup_nm_s2: core::cell::Cell<f32>,
 }
 
 /// Highest speed from which a stop at `accel` ends within `distance` (v = √(2·a·d)).
@@ -272,7 +253,7 @@ impl Controller {
             fine_start_counts: 0,
             fine_misses: 0,
             observed_bias_n: cfg.expected_load_n,
-            model: ModelCache::new(&cfg),
+            model: ModelSlot::new(&cfg, 0),
             prev_speed_nm_s: 0.0,
             decel_nm_s2: 1.0,
             reference_dir: -1,
@@ -284,6 +265,8 @@ impl Controller {
             open_loop_v: 0.0,
             open_loop_hz: 0.0,
             open_loop_dir: 1,
+            tick: 0,
+            speedup_nm_s2: core::cell::Cell::new(0.0),
             cfg,
         })
     }
@@ -378,7 +361,7 @@ impl Controller {
             self.preload = PreloadCell::new(cfg.preload);
         }
         self.cfg = cfg;
-        self.model = ModelCache::new(&self.cfg);
+        self.model = ModelSlot::new(&self.cfg, self.model.generation.wrapping_add(1));
         Ok(())
     }
 
@@ -387,72 +370,62 @@ impl Controller {
         self.state == State::Holding && self.on_target_s >= self.cfg.settle_time_s
     }
 
-    /// Fixed-point model at the measured preload and the given drive.
-    fn model_point(&self, volts: f32) -> Option<ThrustPoint> {
-        let preload = self.preload_n()?;
-        Some(self.model.per_volt.point(fx_from_f32(preload), fx_from_f32(volts)))
-    }
-
-    /// Stall force (N) and no-load speed (mm/s) at full drive and the measured preload.
+    /// Stall force (N) and no-load speed (mm/s) at full drive and the measured preload: from the
+    /// model table when it fits the preload, else computed here (for queries, off the tick).
     pub fn thrust_limits(&self) -> Option<(f32, f32)> {
         let preload = self.preload_n()?;
-        let m = &self.model;
-        if m.full.is_some()
-            && (preload - m.preload_n).abs() <= PRELOAD_RESOLVE_N
-            && m.no_load_mm_s.is_finite()
-        {
-            return Some((m.stall_n, m.no_load_mm_s));
+        if let Some(t) = self.fitting_table(preload) {
+            return Some((t.stall_n(), t.no_load_mm_s()));
         }
-        let p = self.model_point(self.cfg.max_drive_v)?;
+        let p = self.model.per_volt.point(fx_from_f32(preload), fx_from_f32(self.cfg.max_drive_v));
         Some((p.stall_force_n().to_num(), p.no_load_speed_mm_s().to_num()))
     }
 
-    /// The cached limits for the control path: (stall N, no-load mm/s), None without a preload.
-    fn cached_limits(&self) -> Option<(f32, f32)> {
-        self.model.full.map(|_| (self.model.stall_n, self.model.no_load_mm_s))
+    /// The installed table, if it was built for this preload (within [`PRELOAD_RESOLVE_N`]).
+    fn fitting_table(&self, preload_n: f32) -> Option<&ModelTable> {
+        self.model.table.as_ref().filter(|t| (preload_n - t.request().preload_n).abs() <= PRELOAD_RESOLVE_N)
     }
 
-    /// Keeps [`ModelCache`] current: at most one expensive root per period.
-    fn refresh_model(&mut self) {
-        let Some(preload) = self.preload_n() else {
-            self.model.full = None;
-            return;
-        };
-        let m = &mut self.model;
-        m.tick = m.tick.wrapping_add(1);
-        let fresh = m.full.is_none();
-        if fresh || (preload - m.preload_n).abs() > PRELOAD_RESOLVE_N {
-            let p = m.per_volt.point(fx_from_f32(preload), fx_from_f32(self.cfg.max_drive_v));
-            m.full = Some(p);
-            m.preload_n = preload;
-            m.stall_n = p.stall_force_n().to_num();
-            m.no_load_stale = true;
-            m.speed_limit_load_n = f32::NAN;
-            if fresh {
-                m.no_load_mm_s = p.no_load_speed_mm_s().to_num();
-                m.speed_limit_mm_s = m.no_load_mm_s;
-                m.no_load_stale = false;
-                return;
-            }
+    /// The cached limits for the control path: (stall N, no-load mm/s), None before a table.
+    fn cached_limits(&self) -> Option<(f32, f32)> {
+        self.model.table.as_ref().map(|t| (t.stall_n(), t.no_load_mm_s()))
+    }
+
+    /// The model table the controller wants built, if the installed one does not fit the
+    /// measured preload or the configuration (see [`model_cache`]); None without a valid preload.
+    /// Cheap: a board calls it under its lock, builds the table outside, then installs it.
+    pub fn model_request(&self) -> Option<ModelRequest> {
+        let preload_n = self.preload_n()?;
+        if self.fitting_table(preload_n).is_some() {
+            return None;
         }
-        let Some(p) = m.full else { return };
-        // Each root only when its inputs moved, and never two in one period.
-        match m.tick % 8 {
-            0 if m.no_load_stale => {
-                m.no_load_mm_s = p.no_load_speed_mm_s().to_num();
-                m.no_load_stale = false;
-            }
-            4 => {
-                let dir = if self.profile.target_nm() >= self.profile.position_nm() { 1.0 } else { -1.0 };
-                let load = (dir * self.thrust_bias_n).max(0.0);
-                let never = m.speed_limit_load_n.is_nan();
-                if never || (load - m.speed_limit_load_n).abs() > LOAD_RESOLVE_N {
-                    let hint = if never { f32::NAN } else { m.speed_limit_mm_s };
-                    m.speed_limit_mm_s = p.speed_at_load_near(fx_from_f32(load), hint).to_num();
-                    m.speed_limit_load_n = load;
-                }
-            }
-            _ => {}
+        Some(ModelRequest {
+            per_volt: self.model.per_volt,
+            preload_n,
+            max_drive_v: self.cfg.max_drive_v,
+            generation: self.model.generation,
+        })
+    }
+
+    /// Takes a table built from [`Self::model_request`]; false (and the table dropped) when the
+    /// configuration changed since the request.
+    pub fn install_model(&mut self, table: ModelTable) -> bool {
+        let r = table.request();
+        let current = r.generation == self.model.generation
+            && r.per_volt == self.model.per_volt
+            && r.max_drive_v == self.cfg.max_drive_v;
+        if current {
+            self.model.table = Some(table);
+        }
+        current
+    }
+
+    /// The lower-rate work done at once: builds and installs the model table if one is wanted.
+    /// For hosts that run the controller synchronously (simulator, tests); the board splits it
+    /// into [`Self::model_request`], [`ModelTable::build`] outside its lock, [`Self::install_model`].
+    pub fn background(&mut self) {
+        if let Some(r) = self.model_request() {
+            self.install_model(ModelTable::build(&r));
         }
     }
 
@@ -666,10 +639,10 @@ impl Controller {
     /// Highest profile speed: the model's speed at full drive against the estimated load in the
     /// direction of travel, with margin.
     fn speed_limit_nm_s(&self) -> f32 {
-        if self.model.full.is_none() || !self.model.speed_limit_mm_s.is_finite() {
-            return 0.0;
-        }
-        (self.model.speed_limit_mm_s * 1e6 * self.cfg.speed_fraction).min(self.cfg.velocity_max_nm_s)
+        let Some(t) = self.model.table.as_ref() else { return 0.0 };
+        let dir = if self.profile.target_nm() >= self.profile.position_nm() { 1.0 } else { -1.0 };
+        let load = (dir * self.thrust_bias_n).max(0.0);
+        (t.speed_at_load_mm_s(load) * 1e6 * self.cfg.speed_fraction).min(self.cfg.velocity_max_nm_s)
     }
 
     /// Braking limit: the model's (below) within the user's deceleration limit.
@@ -691,17 +664,18 @@ impl Controller {
     /// cannot deliver at the measured preload.
     fn speedup_limit_nm_s2(&self) -> f32 {
         let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>().max(1e-3);
-        let Some(p) = self.model.full else { return 0.0 };
+        let Some(t) = self.model.table.as_ref() else { return 0.0 };
         let v = self.profile.velocity_nm_s();
-        let thrust: f32 = p.thrust_n(fx_from_f32(v.abs() * 1e-6)).to_num();
+        let thrust = t.full_thrust_n(v.abs() * 1e-6);
         let load = v.signum() * self.thrust_bias_n;
-        let stall = self.model.stall_n;
+        let stall = t.stall_n();
         let usable = (thrust - load.max(0.0)).max(0.05 * stall);
         (usable / mass * 1e9 * self.cfg.accel_fraction).min(self.cfg.accel_max_nm_s2)
     }
 
     /// One control period.
     pub fn step(&mut self, inputs: &Inputs) -> Outputs {
+        self.tick = self.tick.wrapping_add(1);
         self.sense(inputs);
         self.supervise();
         // A limit switch in the direction of a closed-loop move stops it where it is.
@@ -739,7 +713,6 @@ impl Controller {
 
     fn sense(&mut self, inputs: &Inputs) {
         self.preload.update(inputs.preload_word);
-        self.refresh_model();
         self.prev_speed_nm_s = self.speed_nm_s;
         match self.encoder.as_mut() {
             None => {
@@ -813,7 +786,18 @@ impl Controller {
             v_max = v_max.min((self.speed_nm_s * self.profile.velocity_nm_s().signum()).max(0.0));
         }
         let v_before = self.profile.velocity_nm_s();
-        self.profile.step(self.dt_s, v_max, self.speedup_limit_nm_s2(), self.decel_nm_s2);
+        let (dt_s, decel) = (self.dt_s, self.decel_nm_s2);
+        // The speed-up limit costs a model evaluation: only when the profile speeds up.
+        let odd = self.tick & 1 == 1;
+        let up = || {
+            if odd || self.speedup_nm_s2.get() <= 0.0 {
+                self.speedup_nm_s2.set(self.speedup_limit_nm_s2());
+            }
+            self.speedup_nm_s2.get()
+        };
+        let mut profile = self.profile;
+        profile.step(dt_s, v_max, up, decel);
+        self.profile = profile;
         self.accel_ref_nm_s2 = (self.profile.velocity_nm_s() - v_before) / self.dt_s;
         if self.state == State::Moving && self.profile.done() {
             self.enter_hold();
@@ -952,16 +936,17 @@ impl Controller {
             // Load observer (the thrust model run forwards): what the applied drive pushes at the
             // measured speed, less what accelerated the mass, is what the load took.
             let d = f32::from(self.generator.direction());
-            let applied = self
-                .model_point(self.generator.amplitude_v())
-                .map_or(0.0, |p| p.thrust_n(fx_from_f32(d * self.speed_nm_s * 1e-6)).to_num::<f32>());
-            let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>();
-            let accel = (self.speed_nm_s - self.prev_speed_nm_s) / self.dt_s * 1e-9;
-            let sample = d * applied - mass * accel;
             // Observe only while the drive pushes the way the slider moves at a fair speed: the
             // model is least certain when braking and near standstill (stick).
             let backslide = self.state == State::Moving && d * self.speed_nm_s < -50_000.0;
             if (d * self.speed_nm_s > 200_000.0 || backslide) && self.drive_v > 0.2 * self.cfg.max_drive_v {
+                let applied =
+                    self.model.table.as_ref().map_or(0.0, |t| {
+                        t.thrust_n(self.generator.amplitude_v(), d * self.speed_nm_s * 1e-6)
+                    });
+                let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>();
+                let accel = (self.speed_nm_s - self.prev_speed_nm_s) / self.dt_s * 1e-9;
+                let sample = d * applied - mass * accel;
                 // Sliding back under drive means the load is far above the estimate: learn faster.
                 let gain = if backslide { 0.02 } else { 0.005 };
                 self.observed_bias_n += gain * (sample - self.observed_bias_n);
@@ -973,14 +958,10 @@ impl Controller {
             // Inertia of the profile's acceleration is part of the load (F = M·a).
             let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>();
             let load_along = f32::from(dir) * (self.thrust_bias_n + mass * self.accel_ref_nm_s2 * 1e-9);
-            let p = self.model.per_volt.voltage_near(
-                fx_from_f32(self.preload.force_n()),
-                fx_from_f32(v_cmd.abs() * 1e-6),
-                fx_from_f32(load_along),
-                fx_from_f32(self.cfg.max_drive_v),
-                self.drive_v,
-            );
-            p.to_num::<f32>()
+            self.model
+                .table
+                .as_ref()
+                .map_or(0.0, |t| t.voltage_for(v_cmd.abs() * 1e-6, load_along, self.drive_v))
         } else {
             // No model: PI from position error straight to signed volts. The integral stops
             // while the output is saturated the same way (anti-windup).

@@ -30,6 +30,8 @@ compile_error!("no drive output selected: enable `dac-drive` or `pwm-drive`");
 pub mod control;
 #[cfg(all(target_os = "none", feature = "dac-drive"))]
 pub mod drive_dac;
+#[cfg(target_os = "none")]
+pub mod model;
 #[cfg(all(target_os = "none", feature = "dac-drive"))]
 pub use drive_dac as drive;
 #[cfg(all(target_os = "none", feature = "pwm-drive", not(feature = "dac-drive")))]

@@ -3,6 +3,7 @@
 //! attached (`tools/pil/run`).
 
 use cortex_m_semihosting::hprintln;
+use piezo_drive::controller::model_cache::{ModelRequest, ModelTable};
 use piezo_drive::controller::{Controller, Inputs, DAC_SAMPLES_PER_STEP};
 use piezo_drive::defaults::controller_config;
 use piezo_drive::gcs::{Board, Gcs, LoopStats, Pending, Reply};
@@ -63,6 +64,8 @@ pub fn hot_paths() {
         idle.add(counts(|| {
             core::hint::black_box(ctl.step(core::hint::black_box(&inputs)));
         }));
+        // The board's thread-mode task, outside the tick.
+        ctl.background();
     }
     idle.print("Controller::step while idle (servo off)", k);
     ctl.set_servo(true).unwrap();
@@ -76,6 +79,7 @@ pub fn hot_paths() {
         let c = counts(|| {
             core::hint::black_box(ctl.step(core::hint::black_box(&inputs)));
         });
+        ctl.background();
         if was_moving {
             if c as f32 * k > 14_000.0 && slow < 12 {
                 slow += 1;
@@ -127,6 +131,29 @@ pub fn hot_paths() {
         }));
     }
     pt.print("PerVolt::point", k);
+    // The model table the tick reads (built by the board's thread-mode task).
+    let request = ModelRequest { per_volt: pv, preload_n: 16.0, max_drive_v: 100.0, generation: 0 };
+    let mut build = Stat::new();
+    let mut table = ModelTable::build(&request);
+    for _ in 0..5 {
+        build.add(counts(|| table = core::hint::black_box(ModelTable::build(core::hint::black_box(&request)))));
+    }
+    build.print("ModelTable::build (thread mode on the board)", k);
+    let (mut t_inv, mut t_thrust, mut t_speed) = (Stat::new(), Stat::new(), Stat::new());
+    let mut hint_v = 50.0f32;
+    for i in 0..2000i32 {
+        let sp = 1.0 + (i % 200) as f32 / 200.0;
+        t_inv.add(counts(|| hint_v = core::hint::black_box(&table).voltage_for(sp, 0.5, hint_v)));
+        t_thrust.add(counts(|| {
+            core::hint::black_box(core::hint::black_box(&table).thrust_n(63.3, sp));
+        }));
+        t_speed.add(counts(|| {
+            core::hint::black_box(core::hint::black_box(&table).speed_at_load_mm_s(sp));
+        }));
+    }
+    t_inv.print("ModelTable::voltage_for warm (speed ramps 1-2 mm/s)", k);
+    t_thrust.print("ModelTable::thrust_n between two table voltages", k);
+    t_speed.print("ModelTable::speed_at_load_mm_s", k);
     let mut warm = Stat::new();
     let mut th = Stat::new();
     let mut hint = 50.0f32;

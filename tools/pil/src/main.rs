@@ -20,6 +20,7 @@ use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln, syscall};
+use piezo_drive::controller::model_cache::ModelTable;
 use piezo_drive::controller::{Controller, DAC_SAMPLES_PER_STEP};
 use piezo_drive::defaults::controller_config;
 use piezo_drive::pil_wire::{self, Command, Reply, REPLY_BYTES, TICK_BYTES};
@@ -134,6 +135,14 @@ fn pil(fd_in: usize, fd_out: usize, k: f32) {
             }
         });
         half = DAC_SAMPLES_PER_STEP - half;
+        // The board's thread-mode work (the model table), after the tick and counted apart.
+        let background_counts = match ctl.model_request() {
+            Some(request) => counts(|| {
+                ctl.install_model(ModelTable::build(&request));
+            })
+            .max(1),
+            None => 0,
+        };
         let Some(outputs) = out else { return };
         let reply = Reply {
             outputs,
@@ -141,6 +150,7 @@ fn pil(fd_in: usize, fd_out: usize, k: f32) {
             command_refused: refused,
             tick_instructions: (tick_counts as f32 * k) as u32,
             step_instructions: (step_counts as f32 * k) as u32,
+            background_instructions: if background_counts > 0 { (background_counts as f32 * k) as u32 } else { 0 },
         };
         let bytes: [u8; REPLY_BYTES] = pil_wire::encode_reply(&reply);
         if !write_all(fd_out, &bytes) {

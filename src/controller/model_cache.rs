@@ -1,0 +1,264 @@
+//! The thrust model as the control tick uses it: prepared off the tick, read in it.
+//!
+//! Building a model point (contact angle, eq. 14 exact form, and the speed-independent parts of
+//! eq. 22) and finding a speed-at-load root cost thousands of instructions on the Cortex-M4, and
+//! their inputs (the preload, the configuration) change slowly. So a lower-priority context (the
+//! board's thread-mode task, or the host right after each step) builds a [`ModelTable`] for the
+//! measured preload: the model at [`VOLT_POINTS`] drive voltages and the speed at full drive
+//! against [`LOAD_POINTS`] loads. The tick then only evaluates eq. (22) at two neighbouring
+//! voltages of the table and interpolates (the inverse model, the load observer), or
+//! interpolates the speed table (the profile's speed limit): no root finding, no point building.
+//!
+//! The hand-over: the tick never waits. [`super::Controller::model_request`] says what table the
+//! controller wants (none while the installed one fits the measured preload within
+//! [`PRELOAD_RESOLVE_N`]); [`ModelTable::build`] runs anywhere; [`super::Controller::install_model`]
+//! takes it if it still answers the controller's configuration. Until the first table is in, the
+//! profile has no speed to move at (as without a preload reading).
+
+use crate::fastmath::{clamp_f32, fx_from_f32};
+use crate::model::PerVolt;
+use crate::trig::{acos, cos};
+use crate::Fx;
+
+/// Drive voltages of the grid, evenly spaced from 0 to the largest drive.
+pub const VOLT_POINTS: usize = 33;
+/// Values of φp of the grid, evenly spaced over [0, π].
+pub const PHASE_POINTS: usize = 33;
+/// Loads of the speed table, evenly spaced from 0 to the stall force at full drive.
+pub const LOAD_POINTS: usize = 17;
+
+/// Preload change (N) that asks for a new table: the model's limits change by well under 1 %
+/// over it, and the force cell's filtered noise stays below it.
+pub const PRELOAD_RESOLVE_N: f32 = 0.02;
+
+/// Row 0 of the grid is built at this share of the voltage step instead of 0 V, where the foot
+/// does not move and φp is undefined (the limit the row stands for).
+const ROW0_SHARE: f32 = 0.05;
+
+/// What a table is built from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ModelRequest {
+    pub per_volt: PerVolt,
+    pub preload_n: f32,
+    pub max_drive_v: f32,
+    /// The controller configuration this request belongs to (bumped by every accepted
+    /// `set_config`): a table built for an older one is refused.
+    pub generation: u32,
+}
+
+/// The thrust model at one preload and drive frequency, ready for the tick.
+#[derive(Debug, Clone, Copy)]
+pub struct ModelTable {
+    request: ModelRequest,
+    /// Thrust at (`max_drive_v · j / (VOLT_POINTS − 1)`, `π · k / (PHASE_POINTS − 1)`), in units of
+    /// `thrust_scale_n` (16 bits: the grid's largest thrust over 32 767).
+    thrust_q: [[i16; PHASE_POINTS]; VOLT_POINTS],
+    thrust_scale_n: f32,
+    /// Grid row per volt: (VOLT_POINTS − 1) / max_drive_v.
+    index_per_v: f32,
+    /// Peak foot speed per volt, ω·Xc / V (mm/s per V).
+    foot_mm_s_per_v: f32,
+    stall_n: f32,
+    /// Forward speed at full drive against an opposing load `stall_n · k / (LOAD_POINTS − 1)`.
+    speed_mm_s: [f32; LOAD_POINTS],
+}
+
+/// Grid columns per radian of φp.
+const COLUMNS_PER_RAD: f32 = (PHASE_POINTS - 1) as f32 / core::f32::consts::PI;
+
+/// Splits a grid coordinate into its cell (at most `last − 1`) and the share into the cell.
+fn cell(x: f32, last: usize) -> (usize, f32) {
+    let x = clamp_f32(x, 0.0, last as f32);
+    let i = (x as usize).min(last - 1);
+    (i, x - i as f32)
+}
+
+impl ModelTable {
+    /// The expensive part: [`VOLT_POINTS`] model points, the thrust at every grid node and
+    /// [`LOAD_POINTS`] speed roots (a few hundred thousand instructions on the Cortex-M4, for a
+    /// lower-priority context).
+    pub fn build(request: &ModelRequest) -> Self {
+        let top = request.max_drive_v.max(0.0);
+        let preload = fx_from_f32(request.preload_n);
+        let step_v = top / (VOLT_POINTS - 1) as f32;
+        let mut thrust_n = [[0.0f32; PHASE_POINTS]; VOLT_POINTS];
+        let mut largest = 0.0f32;
+        for (j, row) in thrust_n.iter_mut().enumerate() {
+            let volts = if j == 0 { ROW0_SHARE * step_v } else { step_v * j as f32 };
+            let point = request.per_volt.point(preload, fx_from_f32(volts));
+            for (k, t) in row.iter_mut().enumerate() {
+                let phi = Fx::PI * k as i32 / (PHASE_POINTS - 1) as i32;
+                *t = point.thrust_n(point.foot_speed_mm_s.saturating_mul(cos(phi))).to_num();
+                largest = largest.max(t.abs());
+            }
+        }
+        let thrust_scale_n = if largest > 0.0 { largest / 32_767.0 } else { 1.0 };
+        let thrust_q = thrust_n.map(|row| {
+            row.map(|t| {
+                let q = t / thrust_scale_n;
+                (if q >= 0.0 { q + 0.5 } else { q - 0.5 }) as i16
+            })
+        });
+        let full = request.per_volt.point(preload, fx_from_f32(top));
+        let stall_n: f32 = full.stall_force_n().to_num();
+        let mut speed_mm_s = [0.0f32; LOAD_POINTS];
+        let mut hint = f32::NAN;
+        for (k, s) in speed_mm_s.iter_mut().enumerate() {
+            let load = stall_n * k as f32 / (LOAD_POINTS - 1) as f32;
+            *s = full.speed_at_load_near(fx_from_f32(load), hint).to_num();
+            hint = *s;
+        }
+        ModelTable {
+            request: *request,
+            thrust_q,
+            thrust_scale_n,
+            index_per_v: if top > 0.0 { (VOLT_POINTS - 1) as f32 / top } else { 0.0 },
+            foot_mm_s_per_v: request.per_volt.foot_speed_mm_s_per_v.to_num(),
+            stall_n,
+            speed_mm_s,
+        }
+    }
+
+    pub fn request(&self) -> &ModelRequest {
+        &self.request
+    }
+
+    /// Stall force at full drive (N).
+    pub fn stall_n(&self) -> f32 {
+        self.stall_n
+    }
+
+    /// No-load speed at full drive (mm/s).
+    pub fn no_load_mm_s(&self) -> f32 {
+        self.speed_mm_s[0]
+    }
+
+    /// Forward speed at full drive against an opposing `load_n` (mm/s), interpolated; 0 at or
+    /// above the stall force, the no-load speed for an assisting load.
+    pub fn speed_at_load_mm_s(&self, load_n: f32) -> f32 {
+        // Written so that a NaN load or stall gives 0 too.
+        let stalled =
+            load_n >= self.stall_n || self.stall_n <= 0.0 || load_n.is_nan() || self.stall_n.is_nan();
+        if stalled {
+            return 0.0;
+        }
+        let (k, t) = cell(load_n / self.stall_n * (LOAD_POINTS - 1) as f32, LOAD_POINTS - 1);
+        let a = self.speed_mm_s.get(k).copied().unwrap_or(0.0);
+        let b = self.speed_mm_s.get(k + 1).copied().unwrap_or(0.0);
+        a + (b - a) * t
+    }
+
+    /// Grid column of φp for a slider at `speed_mm_s` under a foot driven at `volts`
+    /// (φp = acos(v / ω·Xc); 0 or π beyond the foot's speed, π/2 for a standing foot and slider).
+    fn column(&self, volts: f32, speed_mm_s: f32) -> f32 {
+        let foot = self.foot_mm_s_per_v * volts;
+        let ratio = if foot > 0.0 {
+            clamp_f32(speed_mm_s / foot, -1.0, 1.0)
+        } else if speed_mm_s > 0.0 {
+            1.0
+        } else if speed_mm_s < 0.0 {
+            -1.0
+        } else {
+            0.0
+        };
+        acos(fx_from_f32(ratio)).to_num::<f32>() * COLUMNS_PER_RAD
+    }
+
+    /// Row `j` of the grid at column coordinate `c` (N).
+    fn row_at(&self, j: usize, c: f32) -> f32 {
+        let (k, t) = cell(c, PHASE_POINTS - 1);
+        let row = self.thrust_q.get(j);
+        let a = f32::from(row.and_then(|r| r.get(k)).copied().unwrap_or(0));
+        let b = f32::from(row.and_then(|r| r.get(k + 1)).copied().unwrap_or(0));
+        (a + (b - a) * t) * self.thrust_scale_n
+    }
+
+    /// Mean thrust (N) at drive `volts` and slider speed `speed_mm_s` along the drive (eq. 22),
+    /// interpolated in (voltage, φp).
+    pub fn thrust_n(&self, volts: f32, speed_mm_s: f32) -> f32 {
+        let (j, t) = cell(volts * self.index_per_v, VOLT_POINTS - 1);
+        let c = self.column(volts, speed_mm_s);
+        let a = self.row_at(j, c);
+        let b = self.row_at(j + 1, c);
+        a + (b - a) * t
+    }
+
+    /// The full-drive thrust at `speed_mm_s` (N).
+    pub fn full_thrust_n(&self, speed_mm_s: f32) -> f32 {
+        self.row_at(VOLT_POINTS - 1, self.column(self.request.max_drive_v, speed_mm_s))
+    }
+
+    /// Thrust of grid row `j` (its own voltage) at `speed_mm_s` (N).
+    fn row_thrust_n(&self, j: usize, speed_mm_s: f32) -> f32 {
+        let volts = j as f32 / self.index_per_v;
+        self.row_at(j, self.column(volts, speed_mm_s))
+    }
+
+    /// Inverse model (the feedforward): the drive voltage at which the model runs at
+    /// `speed_mm_s` against `load_n` (opposing; negative = assisting), within 0 and the largest
+    /// drive. The grid's rows bracket the answer, searched from `hint_v` (the last period's
+    /// answer: two rows when it moved less than a grid step; bisection over the rows
+    /// otherwise, at most eight), then one secant step on the interpolated thrust.
+    pub fn voltage_for(&self, speed_mm_s: f32, load_n: f32, hint_v: f32) -> f32 {
+        if self.index_per_v <= 0.0 {
+            return 0.0;
+        }
+        let last = VOLT_POINTS - 1;
+        // Falling in the row: positive while the drive is not enough.
+        let excess = |j: usize| load_n - self.row_thrust_n(j, speed_mm_s);
+        let h = if hint_v.is_finite() { hint_v * self.index_per_v } else { 0.0 };
+        let j0 = (clamp_f32(h, 0.0, last as f32) as usize).min(last - 1);
+        let e0 = excess(j0);
+        // Find a with excess(a) > 0 ≥ excess(a + 1).
+        let (mut lo, mut e_lo, mut hi, mut e_hi);
+        if e0 > 0.0 {
+            let e1 = excess(j0 + 1);
+            if e1 <= 0.0 {
+                return self.refine(j0, e0, e1, speed_mm_s, load_n);
+            }
+            let e_top = if j0 + 1 == last { e1 } else { excess(last) };
+            if e_top > 0.0 {
+                return self.request.max_drive_v;
+            }
+            (lo, e_lo, hi, e_hi) = (j0 + 1, e1, last, e_top);
+        } else {
+            if j0 == 0 {
+                return 0.0;
+            }
+            let e1 = excess(j0 - 1);
+            if e1 > 0.0 {
+                return self.refine(j0 - 1, e1, e0, speed_mm_s, load_n);
+            }
+            let e_bottom = if j0 == 1 { e1 } else { excess(0) };
+            if e_bottom <= 0.0 {
+                return 0.0;
+            }
+            (lo, e_lo, hi, e_hi) = (0, e_bottom, j0 - 1, e1);
+        }
+        while hi - lo > 1 {
+            let mid = (lo + hi) / 2;
+            let e = excess(mid);
+            if e > 0.0 {
+                (lo, e_lo) = (mid, e);
+            } else {
+                (hi, e_hi) = (mid, e);
+            }
+        }
+        self.refine(lo, e_lo, e_hi, speed_mm_s, load_n)
+    }
+
+    /// The crossing between rows `j` (excess > 0) and `j + 1` (≤ 0): linear in the voltage first,
+    /// then one secant step on the interpolated thrust at that voltage, kept inside the rows.
+    fn refine(&self, j: usize, e_j: f32, e_next: f32, speed_mm_s: f32, load_n: f32) -> f32 {
+        let (v_j, v_next) = (j as f32 / self.index_per_v, (j + 1) as f32 / self.index_per_v);
+        let span = e_j - e_next;
+        let t = if span > 0.0 { clamp_f32(e_j / span, 0.0, 1.0) } else { 1.0 };
+        let v1 = v_j + (v_next - v_j) * t;
+        let e1 = load_n - self.thrust_n(v1, speed_mm_s);
+        // Secant with the row on the other side of the crossing.
+        let (v_other, e_other) = if e1 > 0.0 { (v_next, e_next) } else { (v_j, e_j) };
+        let d = e1 - e_other;
+        let v2 = if d != 0.0 { v1 - e1 * (v1 - v_other) / d } else { v1 };
+        clamp_f32(v2, v_j, v_next)
+    }
+}
