@@ -313,3 +313,22 @@ fn pil_frames_round_trip_and_reject_unknown_commands() {
     assert_eq!(state_name(0x80), "unknown");
     assert_eq!(r.state & 0x7f, FaultCode::EncoderJump as u8);
 }
+
+/// The model table's acos (Abramowitz & Stegun 4.4.45) against the f64 acos: within 7e-5 rad
+/// over [−1, 1], exact at the ends, π/2 for NaN, clamped outside.
+#[test]
+fn acos_f32_within_its_stated_error() {
+    use piezo_drive::fastmath::acos_f32;
+    let mut worst = 0.0f64;
+    for i in 0..=20_000 {
+        let x = -1.0 + 2.0 * f64::from(i) / 20_000.0;
+        let err = (f64::from(acos_f32(x as f32)) - x.acos()).abs();
+        worst = worst.max(err);
+    }
+    assert!(worst < 7e-5, "worst {worst}");
+    assert!(acos_f32(1.0).abs() < 1e-6);
+    assert!((f64::from(acos_f32(-1.0)) - std::f64::consts::PI).abs() < 1e-6);
+    assert!((acos_f32(f32::NAN) - std::f32::consts::FRAC_PI_2).abs() < 1e-4);
+    assert_eq!(acos_f32(3.0), acos_f32(1.0));
+    assert_eq!(acos_f32(-3.0), acos_f32(-1.0));
+}

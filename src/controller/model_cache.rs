@@ -15,9 +15,9 @@
 //! takes it if it still answers the controller's configuration. Until the first table is in, the
 //! profile has no speed to move at (as without a preload reading).
 
-use crate::fastmath::{clamp_f32, fx_from_f32};
+use crate::fastmath::{acos_f32, clamp_f32, fx_from_f32};
 use crate::model::PerVolt;
-use crate::trig::{acos, cos};
+use crate::trig::cos;
 use crate::Fx;
 
 /// Drive voltages of the grid, evenly spaced from 0 to the largest drive.
@@ -161,7 +161,7 @@ impl ModelTable {
         } else {
             0.0
         };
-        acos(fx_from_f32(ratio)).to_num::<f32>() * COLUMNS_PER_RAD
+        acos_f32(ratio) * COLUMNS_PER_RAD
     }
 
     /// Row `j` of the grid at column coordinate `c` (N).

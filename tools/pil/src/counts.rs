@@ -94,6 +94,38 @@ pub fn hot_paths() {
     holding.print("Controller::step while holding", k);
     hprintln!("final state {:?}, position {} nm", ctl.state(), ctl.position_nm());
 
+    // The states the PIL moves do not visit: referencing (an index search that finds nothing
+    // within these periods) and open-loop stepping (servo off, XOS), the tick counted as PIL
+    // counts it: the step plus packing the half-buffer.
+    let mut tick_of = |ctl: &mut Controller, inputs: &Inputs| {
+        let c = counts(|| {
+            let out = ctl.step(core::hint::black_box(inputs));
+            for (j, s) in out.dac.iter().enumerate() {
+                let w = u32::from(s[0].min(4095)) | (u32::from(s[1].min(4095)) << 16);
+                // SAFETY: in bounds, single-threaded.
+                unsafe { core::ptr::addr_of_mut!(HALF).cast::<u32>().add(j).write_volatile(w) };
+            }
+        });
+        ctl.background();
+        c
+    };
+    ctl.start_referencing().unwrap();
+    let mut referencing = Stat::new();
+    for _ in 0..2_000 {
+        inputs.encoder_raw = inputs.encoder_raw.wrapping_sub(1);
+        referencing.add(tick_of(&mut ctl, &inputs));
+    }
+    referencing.print("whole tick while referencing (index search)", k);
+    ctl.stop();
+    ctl.set_servo(false).unwrap();
+    ctl.open_loop_step(2_000, 80.0, 1_500.0).unwrap();
+    let mut open_loop = Stat::new();
+    for _ in 0..2_000 {
+        inputs.encoder_raw = inputs.encoder_raw.wrapping_add(2);
+        open_loop.add(tick_of(&mut ctl, &inputs));
+    }
+    open_loop.print("whole tick while stepping open loop (XOS, 80 V, 1.5 kHz)", k);
+
     // Pieces of the step, through the core's public API (model at 16 N, 100 V, 2.2 kHz).
     let mut limits = Stat::new();
     let mut inverse = Stat::new();
