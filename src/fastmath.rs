@@ -18,9 +18,11 @@ pub fn sqrt_f32(x: f32) -> f32 {
 
 /// acos(x) in radians for x in [−1, 1] (clamped; NaN gives π/2), within 7e-5 rad: the
 /// polynomial of Abramowitz & Stegun 4.4.45, √(1 − |x|)·(a0 + a1|x| + a2|x|² + a3|x|³), mirrored
-/// for negative x. The model table's column of φp needs a tenth of its 0.098 rad spacing at most;
-/// this costs one VSQRT and a few multiplies, a quarter of the fixed-point `trig::acos` (table
-/// and square root with conversions), and only plain f32 operations, so host and target agree.
+/// for negative x. The model table's column of φp needs a tenth of its 0.098 rad spacing at most.
+/// Measured on QEMU's Cortex-M4F (`tools/pil/run`, 4001 values over [−1, 1]): 64 instructions a
+/// call; micromath's `acos` takes 45 but is up to 0.029 rad off (a third of a grid column), the
+/// fixed-point `trig::acos` 86 plus its conversions to and from f32. Plain f32 operations and
+/// VSQRT only, so host and target builds agree bit for bit.
 #[inline]
 pub fn acos_f32(x: f32) -> f32 {
     let a = if x.is_nan() { 0.0 } else { clamp_f32(x, -1.0, 1.0) };

@@ -21,6 +21,7 @@ pub fn hot_paths() {
 
     // The core's square root against micromath's (the design card's f32 maths crate).
     sqrt_against_micromath(k);
+    acos_against_micromath(k);
     // The FPU square root (VSQRT through inline asm) on the Cortex-M4F: expect 1.4142135 0.001 0.
     hprintln!(
         "sqrt on the FPU: {} {} {}",
@@ -318,4 +319,27 @@ fn sqrt_against_micromath(k: f32) {
         worst_rel,
         core_exact
     );
+}
+
+/// Instructions of the core's `acos_f32` (the model table's φp column), micromath's `acos` and
+/// the fixed-point `trig::acos` it replaced, over [−1, 1] (4001 points); the largest differences
+/// from `acos_f32` (which the host tests hold within 7e-5 rad of the true acos).
+fn acos_against_micromath(k: f32) {
+    use micromath::F32Ext;
+    let (mut core_stat, mut mm_stat, mut fx_stat) = (Stat::new(), Stat::new(), Stat::new());
+    let (mut worst_mm, mut worst_fx) = (0.0f32, 0.0f32);
+    for i in 0..=4000 {
+        let x = -1.0 + i as f32 / 2000.0;
+        let (mut a, mut b, mut c) = (0.0f32, 0.0f32, Fx::ZERO);
+        core_stat.add(counts(|| a = core::hint::black_box(piezo_drive::fastmath::acos_f32(core::hint::black_box(x)))));
+        mm_stat.add(counts(|| b = core::hint::black_box(F32Ext::acos(core::hint::black_box(x)))));
+        let xf = piezo_drive::fastmath::fx_from_f32(x);
+        fx_stat.add(counts(|| c = core::hint::black_box(piezo_drive::trig::acos(core::hint::black_box(xf)))));
+        worst_mm = worst_mm.max((b - a).abs());
+        worst_fx = worst_fx.max((c.to_num::<f32>() - a).abs());
+    }
+    core_stat.print("fastmath::acos_f32 (A&S 4.4.45, VSQRT)", k);
+    mm_stat.print("micromath F32Ext::acos", k);
+    fx_stat.print("trig::acos (fixed point, table) + conversion in", k);
+    hprintln!("  largest difference from acos_f32: micromath {} rad, trig::acos {} rad", worst_mm, worst_fx);
 }
