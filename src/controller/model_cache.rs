@@ -15,6 +15,7 @@
 //! takes it if it still answers the controller's configuration. Until the first table is in, the
 //! profile has no speed to move at (as without a preload reading).
 
+use super::{Controller, ControllerConfig};
 use crate::fastmath::{acos_f32, clamp_f32, fx_from_f32};
 use crate::model::PerVolt;
 use crate::trig::cos;
@@ -260,5 +261,85 @@ impl ModelTable {
         let d = e1 - e_other;
         let v2 = if d != 0.0 { v1 - e1 * (v1 - v_other) / d } else { v1 };
         clamp_f32(v2, v_j, v_next)
+    }
+}
+
+/// The controller's copy of the model table (see this module) and what it asks for.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct ModelSlot {
+    pub(super) per_volt: PerVolt,
+    /// Counts accepted configurations: a table built for an older one is refused.
+    pub(super) generation: u32,
+    pub(super) table: Option<ModelTable>,
+}
+
+impl ModelSlot {
+    pub(super) fn new(cfg: &ControllerConfig, generation: u32) -> Self {
+        ModelSlot {
+            per_volt: cfg.motor.at_frequency(fx_from_f32(cfg.drive_freq_hz / 1000.0)),
+            generation,
+            table: None,
+        }
+    }
+}
+
+impl Controller {
+    /// Stall force (N) and no-load speed (mm/s) at full drive and the measured preload: from the
+    /// model table when it fits the preload, else computed here (for queries, off the tick).
+    pub fn thrust_limits(&self) -> Option<(f32, f32)> {
+        let preload = self.preload_n()?;
+        if let Some(t) = self.fitting_table(preload) {
+            return Some((t.stall_n(), t.no_load_mm_s()));
+        }
+        let p = self.model.per_volt.point(fx_from_f32(preload), fx_from_f32(self.cfg.max_drive_v));
+        Some((p.stall_force_n().to_num(), p.no_load_speed_mm_s().to_num()))
+    }
+
+    /// The installed table, if it was built for this preload (within [`PRELOAD_RESOLVE_N`]).
+    pub(super) fn fitting_table(&self, preload_n: f32) -> Option<&ModelTable> {
+        self.model.table.as_ref().filter(|t| (preload_n - t.request().preload_n).abs() <= PRELOAD_RESOLVE_N)
+    }
+
+    /// The cached limits for the control path: (stall N, no-load mm/s), None before a table.
+    pub(super) fn cached_limits(&self) -> Option<(f32, f32)> {
+        self.model.table.as_ref().map(|t| (t.stall_n(), t.no_load_mm_s()))
+    }
+
+    /// The model table the controller wants built, if the installed one does not fit the
+    /// measured preload or the configuration (see [`model_cache`]); None without a valid preload.
+    /// Cheap: a board calls it under its lock, builds the table outside, then installs it.
+    pub fn model_request(&self) -> Option<ModelRequest> {
+        let preload_n = self.preload_n()?;
+        if self.fitting_table(preload_n).is_some() {
+            return None;
+        }
+        Some(ModelRequest {
+            per_volt: self.model.per_volt,
+            preload_n,
+            max_drive_v: self.cfg.max_drive_v,
+            generation: self.model.generation,
+        })
+    }
+
+    /// Takes a table built from [`Self::model_request`]; false (and the table dropped) when the
+    /// configuration changed since the request.
+    pub fn install_model(&mut self, table: ModelTable) -> bool {
+        let r = table.request();
+        let current = r.generation == self.model.generation
+            && r.per_volt == self.model.per_volt
+            && r.max_drive_v == self.cfg.max_drive_v;
+        if current {
+            self.model.table = Some(table);
+        }
+        current
+    }
+
+    /// The lower-rate work done at once: builds and installs the model table if one is wanted.
+    /// For hosts that run the controller synchronously (simulator, tests); the board splits it
+    /// into [`Self::model_request`], [`ModelTable::build`] outside its lock, [`Self::install_model`].
+    pub fn background(&mut self) {
+        if let Some(r) = self.model_request() {
+            self.install_model(ModelTable::build(&r));
+        }
     }
 }

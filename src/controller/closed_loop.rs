@@ -1,0 +1,117 @@
+//! Closed-loop motion (Moving and Holding): the profile within the model's speed and
+//! acceleration limits, on-target bookkeeping, and the hand-over between the coarse (sine) and
+//! the fine (static) mode.
+
+use super::fine::FineStep;
+use super::{Controller, Mode, State};
+
+impl Controller {
+    pub(super) fn regulate(&mut self) {
+        let mut v_max = self.speed_limit_nm_s();
+        // A reference running away from a slider that cannot follow (an unknown load, a preload
+        // change) only builds following error: past some lag the profile waits for the slider.
+        let lag =
+            (self.profile.position_nm() - self.position_nm()) as f32 * self.profile.velocity_nm_s().signum();
+        if lag > self.cfg.profile_wait_lag_nm {
+            v_max = v_max.min((self.speed_nm_s * self.profile.velocity_nm_s().signum()).max(0.0));
+        }
+        let v_before = self.profile.velocity_nm_s();
+        let (dt_s, decel) = (self.dt_s, self.decel_nm_s2);
+        // The speed-up limit costs a model evaluation: only when the profile speeds up.
+        let odd = self.tick & 1 == 1;
+        let up = || {
+            if odd || self.speedup_nm_s2.get() <= 0.0 {
+                self.speedup_nm_s2.set(self.speedup_limit_nm_s2());
+            }
+            self.speedup_nm_s2.get()
+        };
+        let mut profile = self.profile;
+        profile.step(dt_s, v_max, up, decel);
+        self.profile = profile;
+        self.accel_ref_nm_s2 = (self.profile.velocity_nm_s() - v_before) / self.dt_s;
+        if self.state() == State::Moving && self.profile.done() {
+            self.enter_hold();
+        }
+        let pos = self.position_nm();
+        let err = (self.profile.position_nm() - pos) as f32;
+        let to_target = (self.profile.target_nm() - pos) as f32;
+
+        // On-target bookkeeping.
+        if self.state() == State::Holding
+            && (self.profile.target_nm() - pos).abs() <= self.cfg.on_target_window_nm
+        {
+            self.on_target_s += self.dt_s;
+        } else {
+            self.on_target_s = 0.0;
+        }
+
+        let fine_room_nm = self.fine_room_v() * self.cfg.motor.fine_nm_per_v.to_num::<f32>();
+        match self.mode {
+            Mode::Coarse => {
+                let nm_per_v = self.cfg.motor.fine_nm_per_v.to_num::<f32>().max(1e-3);
+                let fits = (self.fine_offset_v + to_target / nm_per_v).abs() < 0.9 * self.fine_room_v();
+                if self.profile.done()
+                    && fits
+                    && to_target.abs() < self.cfg.fine_window_nm.min(0.8 * fine_room_nm)
+                {
+                    self.mode = Mode::FineEntering;
+                    self.generator.set_amplitude_v(0.0);
+                    self.drive_v = 0.0;
+                    return;
+                }
+                self.coarse(err);
+            }
+            Mode::FineEntering => {
+                self.generator.set_amplitude_v(0.0);
+                if self.generator.amplitude_v() == 0.0 {
+                    // No check pending; the misses carry over (see `fine_misses`).
+                    self.mode = Mode::Fine(FineStep::at(self.fine_offset_v));
+                }
+            }
+            Mode::Fine(_) => {
+                if to_target.abs() > fine_room_nm.max(self.cfg.fine_window_nm) * 1.5 {
+                    self.mode = Mode::Coarse;
+                    return;
+                }
+                self.fine(err);
+            }
+        }
+    }
+
+    /// Highest profile speed: the model's speed at full drive against the estimated load in the
+    /// direction of travel, with margin.
+    pub(super) fn speed_limit_nm_s(&self) -> f32 {
+        let Some(t) = self.model.table.as_ref() else { return 0.0 };
+        let dir = if self.profile.target_nm() >= self.profile.position_nm() { 1.0 } else { -1.0 };
+        let load = (dir * self.thrust_bias_n).max(0.0);
+        (t.speed_at_load_mm_s(load) * 1e6 * self.cfg.speed_fraction).min(self.cfg.velocity_max_nm_s)
+    }
+
+    /// Braking limit: the model's (below) within the user's deceleration limit.
+    pub(super) fn accel_limit_nm_s2(&self) -> f32 {
+        self.model_brake_nm_s2().min(self.cfg.decel_max_nm_s2)
+    }
+
+    /// The model's braking: reverse drive at full voltage brakes with at least the stall force.
+    pub(super) fn model_brake_nm_s2(&self) -> f32 {
+        let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>().max(1e-3);
+        let stall = self.cached_limits().map_or(0.0, |(f, _)| f);
+        // Leave the load estimate's share of the thrust for the load.
+        let usable = (stall - self.thrust_bias_n.abs()).max(0.3 * stall);
+        usable / mass * 1e9 * self.cfg.accel_fraction
+    }
+
+    /// Speeding-up limit at the profile's present speed: the model's thrust at that speed and
+    /// full drive, less the load estimate, over the moving mass. No acceleration the motor
+    /// cannot deliver at the measured preload.
+    pub(super) fn speedup_limit_nm_s2(&self) -> f32 {
+        let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>().max(1e-3);
+        let Some(t) = self.model.table.as_ref() else { return 0.0 };
+        let v = self.profile.velocity_nm_s();
+        let thrust = t.full_thrust_n(v.abs() * 1e-6);
+        let load = v.signum() * self.thrust_bias_n;
+        let stall = t.stall_n();
+        let usable = (thrust - load.max(0.0)).max(0.05 * stall);
+        (usable / mass * 1e9 * self.cfg.accel_fraction).min(self.cfg.accel_max_nm_s2)
+    }
+}

@@ -1,0 +1,73 @@
+//! Coarse mode: the sine drive, its voltage from the inverse thrust model (feedforward: profile
+//! speed plus position feedback, against the load observer's estimate), or plain PI without the
+//! model.
+
+use super::{Controller, State, DAC_SAMPLES_PER_STEP};
+use crate::fastmath::clamp_sym_f32;
+
+impl Controller {
+    pub(super) fn coarse(&mut self, err_nm: f32) {
+        let v_ref = self.profile.velocity_nm_s();
+        let mut v_cmd = v_ref + self.cfg.kp_per_s * err_nm;
+        if self.profile.done() {
+            // Final approach outside the fine range: below ~0.2 mm/s the model's crawl speeds are
+            // not worth trusting, so approach at a speed the motor surely makes.
+            v_cmd = err_nm.signum() * v_cmd.abs().max(self.cfg.approach_speed_nm_s);
+        }
+        let mut dir: i8 = if v_cmd >= 0.0 { 1 } else { -1 };
+        let stall = self.cached_limits().map_or(0.0, |(stall, _)| stall);
+        let volts = if self.cfg.feedforward {
+            // Load observer (the thrust model run forwards): what the applied drive pushes at the
+            // measured speed, less what accelerated the mass, is what the load took.
+            let d = f32::from(self.generator.direction());
+            // Observe only while the drive pushes the way the slider moves at a fair speed: the
+            // model is least certain when braking and near standstill (stick).
+            let backslide = self.state() == State::Moving && d * self.speed_nm_s < -50_000.0;
+            if (d * self.speed_nm_s > 200_000.0 || backslide) && self.drive_v > 0.2 * self.cfg.max_drive_v {
+                let applied =
+                    self.model.table.as_ref().map_or(0.0, |t| {
+                        t.thrust_n(self.generator.amplitude_v(), d * self.speed_nm_s * 1e-6)
+                    });
+                let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>();
+                let accel = (self.speed_nm_s - self.prev_speed_nm_s) / self.dt_s * 1e-9;
+                let sample = d * applied - mass * accel;
+                // Sliding back under drive means the load is far above the estimate: learn faster.
+                let gain = if backslide { 0.02 } else { 0.005 };
+                self.observed_bias_n += gain * (sample - self.observed_bias_n);
+            }
+            // The integral on the position error corrects what the model gets wrong.
+            self.integral_n =
+                clamp_sym_f32(self.integral_n + self.cfg.ki_n_per_nm_s * err_nm * self.dt_s, stall);
+            self.thrust_bias_n = clamp_sym_f32(self.observed_bias_n + self.integral_n, stall);
+            // Inertia of the profile's acceleration is part of the load (F = M·a).
+            let mass = self.cfg.motor.moving_mass_kg.to_num::<f32>();
+            let load_along = f32::from(dir) * (self.thrust_bias_n + mass * self.accel_ref_nm_s2 * 1e-9);
+            self.model
+                .table
+                .as_ref()
+                .map_or(0.0, |t| t.voltage_for(v_cmd.abs() * 1e-6, load_along, self.drive_v))
+        } else {
+            // No model: PI from position error straight to signed volts. The integral stops
+            // while the output is saturated the same way (anti-windup).
+            let max_v = self.cfg.max_drive_v;
+            let p_term = self.cfg.fb_kp_v_per_nm * err_nm;
+            let unclamped = p_term + self.integral_v;
+            let pushing_limit = unclamped.abs() >= max_v && unclamped * err_nm > 0.0;
+            if !pushing_limit {
+                self.integral_v =
+                    clamp_sym_f32(self.integral_v + self.cfg.fb_ki_v_per_nm_s * err_nm * self.dt_s, max_v);
+            }
+            let signed = p_term + self.integral_v;
+            dir = if signed >= 0.0 { 1 } else { -1 };
+            signed.abs().min(max_v)
+        };
+        self.drive_v = volts;
+        // While the sine runs the foot slides anyway: bring the static offset back to centre.
+        let recentre = 10.0 * self.dt_s * self.fine_room_v();
+        self.fine_offset_v -= clamp_sym_f32(self.fine_offset_v, recentre);
+        self.generator.ramp_static_offsets_v([self.fine_offset_v; 2], DAC_SAMPLES_PER_STEP as u32);
+        self.generator.set_direction(dir);
+        self.generator.set_frequency_hz(self.cfg.drive_freq_hz);
+        self.generator.set_amplitude_v(volts);
+    }
+}

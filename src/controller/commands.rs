@@ -1,0 +1,205 @@
+//! The commands a host gives (GCS `SVO`, `MOV`, `MVR`, `HLT`, `STP`, `XOS`, `FRF`, `SPA`…):
+//! each checks what it needs and sets the state the next [`Controller::step`] acts on.
+
+use super::model_cache::ModelSlot;
+use super::open_loop::OpenLoopRun;
+use super::referencing::ReferenceSearch;
+use super::{validate_settings, Activity, CommandError, Controller, ControllerConfig, Mode, State};
+use crate::sensors::PreloadCell;
+
+impl Controller {
+    /// Replaces the settings after checking them. What the hardware fixes (loop and DAC rates,
+    /// DAC range, encoder resolution, motor table) cannot change at run time.
+    pub fn set_config(&mut self, cfg: ControllerConfig) -> Result<(), CommandError> {
+        let c = &self.cfg;
+        if cfg.loop_hz != c.loop_hz
+            || cfg.dac != c.dac
+            || cfg.encoder_nm_per_count != c.encoder_nm_per_count
+            || cfg.motor != c.motor
+        {
+            return Err(CommandError::InvalidValue);
+        }
+        validate_settings(&cfg)?;
+        if cfg.preload != self.cfg.preload {
+            // Re-primed by the next sample.
+            self.preload = PreloadCell::new(cfg.preload);
+        }
+        self.cfg = cfg;
+        self.model = ModelSlot::new(&self.cfg, self.model.generation.wrapping_add(1));
+        Ok(())
+    }
+
+    pub fn set_servo(&mut self, on: bool) -> Result<(), CommandError> {
+        if let State::Fault(code) = self.state() {
+            return Err(CommandError::Faulted(code));
+        }
+        if on {
+            self.check_preload()?;
+        }
+        self.servo = on;
+        if on {
+            self.fine_misses = 0;
+            if let Mode::Fine(f) = &mut self.mode {
+                f.expect_counts = 0;
+            }
+            let here = self.position_nm();
+            self.profile.reset(here);
+            self.enter_hold();
+        } else {
+            self.activity = Activity::Idle;
+            self.generator.ramp_to_quiet();
+        }
+        Ok(())
+    }
+
+    pub fn move_to(&mut self, target_nm: i64) -> Result<(), CommandError> {
+        if let State::Fault(code) = self.state() {
+            return Err(CommandError::Faulted(code));
+        }
+        if self.state() == State::Referencing {
+            return Err(CommandError::Busy);
+        }
+        if !self.servo {
+            return Err(CommandError::ServoOff);
+        }
+        if target_nm < self.cfg.travel_min_nm || target_nm > self.cfg.travel_max_nm {
+            return Err(CommandError::OutOfTravel);
+        }
+        self.check_preload()?;
+        self.profile.set_target(target_nm);
+        // The braking rate is fixed for the whole move: a braking curve that changed under the
+        // profile's feet would arrive with speed left over.
+        self.decel_nm_s2 = self.accel_limit_nm_s2();
+        self.max_following_error_nm = 0.0;
+        self.on_target_s = 0.0;
+        self.activity = Activity::Moving;
+        if !matches!(self.mode, Mode::Coarse)
+            && (target_nm - self.position_nm()).abs() as f32 > self.cfg.fine_window_nm
+        {
+            self.mode = Mode::Coarse;
+        }
+        Ok(())
+    }
+
+    pub fn move_relative(&mut self, delta_nm: i64) -> Result<(), CommandError> {
+        self.move_to(self.profile.target_nm().saturating_add(delta_nm))
+    }
+
+    /// Smooth stop: decelerate along the profile and hold where it ends. Referencing and
+    /// open-loop stepping stop at once.
+    pub fn halt(&mut self) {
+        match self.state() {
+            State::Moving => {
+                let a = self.accel_limit_nm_s2();
+                let p = self.profile.stopping_point_nm(a);
+                self.profile.set_target(p);
+            }
+            State::Referencing | State::OpenLoop => self.stop(),
+            _ => {}
+        }
+    }
+
+    /// Stop as fast as the motor can (PI's STP): a closed-loop move brakes along the profile at
+    /// the model's braking rate, whatever the deceleration limit says — the slider's inertia
+    /// makes a stop on the spot impossible, and a reference that stopped dead would only build
+    /// up following error. Referencing and open-loop stepping end at once: hold there (servo on)
+    /// or go quiet (servo off).
+    pub fn stop(&mut self) {
+        if self.state() == State::Moving {
+            let a = self.model_brake_nm_s2();
+            let p = self.profile.stopping_point_nm(a);
+            self.profile.set_target(p);
+            self.decel_nm_s2 = a;
+            return;
+        }
+        if matches!(self.state(), State::Holding | State::Referencing | State::OpenLoop) {
+            let here = self.position_nm();
+            self.profile.reset(here);
+            if self.servo {
+                self.enter_hold();
+            } else {
+                self.activity = Activity::Idle;
+                self.generator.ramp_to_quiet();
+            }
+        }
+    }
+
+    /// Open-loop stepping with the servo off: `cycles` drive periods (the sign gives the
+    /// direction) at `amplitude_v` peak-to-peak and `frequency_hz`, then quiet.
+    pub fn open_loop_step(
+        &mut self,
+        cycles: i32,
+        amplitude_v: f32,
+        frequency_hz: f32,
+    ) -> Result<(), CommandError> {
+        if let State::Fault(code) = self.state() {
+            return Err(CommandError::Faulted(code));
+        }
+        if self.servo {
+            return Err(CommandError::ServoOn);
+        }
+        if self.state() == State::Referencing {
+            return Err(CommandError::Busy);
+        }
+        let d = &self.cfg.dac;
+        let amplitude_ok =
+            amplitude_v.is_finite() && amplitude_v >= 0.0 && amplitude_v <= self.cfg.max_drive_v;
+        let freq_ok =
+            frequency_hz.is_finite() && frequency_hz >= d.min_freq_hz && frequency_hz <= d.max_freq_hz;
+        if !amplitude_ok || !freq_ok || cycles == 0 {
+            return Err(CommandError::InvalidValue);
+        }
+        self.check_preload()?;
+        // Periods of the control loop that hold `cycles` drive periods, rounded to nearest.
+        let periods =
+            f64::from(cycles.unsigned_abs()) * f64::from(self.cfg.loop_hz) / f64::from(frequency_hz);
+        let run = OpenLoopRun {
+            periods: (periods + 0.5).min(f64::from(u32::MAX)) as u32,
+            volts: amplitude_v,
+            frequency_hz,
+            direction: if cycles > 0 { 1 } else { -1 },
+        };
+        self.mode = Mode::Coarse;
+        self.activity = Activity::OpenLoop(run);
+        Ok(())
+    }
+
+    pub fn clear_fault(&mut self) {
+        if matches!(self.state(), State::Fault(_)) {
+            self.activity = Activity::Idle;
+            self.servo = false;
+            let here = self.position_nm();
+            self.profile.reset(here);
+        }
+    }
+
+    /// Declares the present position to be `position_nm` (referencing on a mark).
+    pub fn set_reference_here(&mut self, position_nm: i64) {
+        if let Some(e) = self.encoder.as_mut() {
+            e.set_position_nm(position_nm);
+        }
+        let here = self.position_nm();
+        self.profile.reset(here);
+        self.referenced = true;
+    }
+
+    /// Moves open loop toward negative positions until the encoder index is seen, then sets the
+    /// position there to zero.
+    ///
+    /// With [`ReferenceSignal::Index`] the search turns round at the negative limit switch and,
+    /// finding no index up to the positive one, references on the negative switch after all;
+    /// with [`ReferenceSignal::NegativeLimit`] the switch is the mark.
+    /// The mark's position becomes `reference_position_nm`. Afterwards the controller holds there
+    /// (servo on) or goes quiet (servo off). A search that runs out of time or switches fails:
+    /// not referenced, [`Self::reference_failure_count`] counts it.
+    pub fn start_referencing(&mut self) -> Result<(), CommandError> {
+        if let State::Fault(code) = self.state() {
+            return Err(CommandError::Faulted(code));
+        }
+        self.check_preload()?;
+        self.activity = Activity::Referencing(ReferenceSearch::start());
+        self.mode = Mode::Coarse;
+        self.referenced = false;
+        Ok(())
+    }
+}

@@ -1,0 +1,46 @@
+//! Open-loop stepping (GCS `XOS`, servo off): a number of drive periods at a given amplitude
+//! and frequency; and the end of any open-loop motion.
+
+use super::{Activity, Controller, Inputs};
+
+/// An open-loop run: control periods left, amplitude (V peak-to-peak), frequency, direction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct OpenLoopRun {
+    pub(super) periods: u32,
+    pub(super) volts: f32,
+    pub(super) frequency_hz: f32,
+    pub(super) direction: i8,
+}
+
+impl Controller {
+    pub(super) fn open_loop(&mut self, inputs: &Inputs) {
+        let Activity::OpenLoop(mut run) = self.activity else { return };
+        let here = self.position_nm();
+        self.profile.reset(here);
+        let blocked =
+            (run.direction < 0 && inputs.negative_limit) || (run.direction > 0 && inputs.positive_limit);
+        if run.periods == 0 || blocked {
+            return self.end_open_loop_motion();
+        }
+        run.periods -= 1;
+        self.activity = Activity::OpenLoop(run);
+        self.generator.set_direction(run.direction);
+        self.generator.set_frequency_hz(run.frequency_hz);
+        self.generator.set_amplitude_v(run.volts);
+        self.drive_v = run.volts;
+    }
+
+    /// End of referencing or open-loop stepping: hold here with the servo on, else go quiet.
+    pub(super) fn end_open_loop_motion(&mut self) {
+        self.generator.set_amplitude_v(0.0);
+        self.drive_v = 0.0;
+        let here = self.position_nm();
+        self.profile.reset(here);
+        if self.servo {
+            self.enter_hold();
+        } else {
+            self.activity = Activity::Idle;
+            self.generator.ramp_to_quiet();
+        }
+    }
+}
