@@ -341,7 +341,7 @@ pub static SETTINGS: &[Setting] = &[
     setting!(0x100F, "Preload", preload_min_n: f32 = 3.0;
         "N", 1.0, NON_NEGATIVE, Stored, "Preload window minimum"),
     setting!(0x1010, "Preload", preload_max_n: f32 =
-        hardware("the highest preload at which full drive still lifts the foot off (physics.md §2)");
+        hardware("the highest preload at which full drive still lifts the foot off, physics.md §2");
         "N", 1.0, NON_NEGATIVE, Stored, "Preload window maximum"),
     setting!(0x1011, "Preload", preload.zero_word: u16 = 0;
         "", 1.0, WORD, Stored, "Force cell zero word"),
@@ -389,12 +389,14 @@ pub fn apply_fixed_defaults(c: &mut ControllerConfig) {
 }
 
 const fn ids_ascending() -> bool {
-    let mut i = 1;
-    while i < SETTINGS.len() {
-        if SETTINGS[i - 1].id >= SETTINGS[i].id {
+    let mut rest = SETTINGS;
+    while let [a, b, ..] = rest {
+        if a.id >= b.id {
             return false;
         }
-        i += 1;
+        if let [_, tail @ ..] = rest {
+            rest = tail;
+        }
     }
     true
 }

@@ -36,12 +36,12 @@ const CRC_LEN: usize = 4;
 
 const fn stored_len() -> usize {
     let mut n = 0;
-    let mut i = 0;
-    while i < SETTINGS.len() {
-        if SETTINGS[i].stored {
-            n += SETTINGS[i].ty.size();
+    let mut rest = SETTINGS;
+    while let [s, tail @ ..] = rest {
+        if s.stored {
+            n += s.ty.size();
         }
-        i += 1;
+        rest = tail;
     }
     n
 }
@@ -96,25 +96,25 @@ const V1_FIELDS: [Old; 29] = [
 ];
 
 const fn setting_size(id: u32) -> usize {
-    let mut i = 0;
-    while i < SETTINGS.len() {
-        if SETTINGS[i].id == id {
-            return SETTINGS[i].ty.size();
+    let mut rest = SETTINGS;
+    while let [s, tail @ ..] = rest {
+        if s.id == id {
+            return s.ty.size();
         }
-        i += 1;
+        rest = tail;
     }
     usize::MAX / 2 // not a setting: fails the length check below
 }
 
 const fn v1_len() -> usize {
     let mut n = 0;
-    let mut i = 0;
-    while i < V1_FIELDS.len() {
-        n += match V1_FIELDS[i] {
+    let mut rest: &[Old] = &V1_FIELDS;
+    while let [field, tail @ ..] = rest {
+        n += match *field {
             Old::Setting(id) => setting_size(id),
             Old::Skip(k) => k,
         };
-        i += 1;
+        rest = tail;
     }
     n
 }
