@@ -278,7 +278,6 @@ macro_rules! setting {
     };
 }
 
-
 /// The settings, in `SPA?`/`HPA?` order (by id). IDs 0x1–0x3F follow PI's numbering where PI
 /// has the same meaning; 0x1001 and up are ours. Ranges are in the field's unit (its name's
 /// suffix); the unit column is the protocol's.

@@ -296,40 +296,40 @@ fn version_2_record_byte_for_byte() {
     let expected = record(
         2,
         &[
-            F(55.5),           // 0x1 kp
-            F(0.002),          // 0x2 ki
-            F(40_000.0),       // 0x8 following error (nm)
-            F(1.5e6),          // 0xA VEL (nm/s)
-            F(5e8),            // 0xB ACC
-            F(2.5e8),          // 0xC DEC
-            I(20_000_000),     // 0x15 travel max (nm)
-            I(-3_500_000),     // 0x30 travel min
-            I(100),            // 0x36 settling window
-            F(0.02),           // 0x3F settling time
-            F(1500.0),         // 0x1001 drive frequency
-            F(90.0),           // 0x1002 maximum drive
-            F(0.5),            // 0x1003 speed share
-            F(0.6),            // 0x1004 thrust share
-            B(0),              // 0x1005 feedforward
-            F(0.004),          // 0x1006 plain kp
-            F(0.3),            // 0x1007 plain ki
-            F(-1.25),          // 0x1008 expected load
-            F(3000.0),         // 0x1009 profile wait lag
-            F(250_000.0),      // 0x100A approach speed
-            F(500.0),          // 0x100B fine window
-            F(0.08),           // 0x100D stall time
-            I32(300),          // 0x100E encoder jump
-            F(4.0),            // 0x100F preload min
-            F(20.0),           // 0x1010 preload max
-            W(7),              // 0x1011 zero word
-            F(0.0125),         // 0x1012 N per word
-            W(3),              // 0x1013 lowest valid word
-            W(4000),           // 0x1014 highest valid word
-            F(0.05),           // 0x1015 filter
-            B(1),              // 0x1016 reference signal: negative limit
-            I(-1_000_000),     // 0x1017 reference position
-            F(40.0),           // 0x1018 reference drive
-            F(100.0),          // 0x1019 reference timeout
+            F(55.5),       // 0x1 kp
+            F(0.002),      // 0x2 ki
+            F(40_000.0),   // 0x8 following error (nm)
+            F(1.5e6),      // 0xA VEL (nm/s)
+            F(5e8),        // 0xB ACC
+            F(2.5e8),      // 0xC DEC
+            I(20_000_000), // 0x15 travel max (nm)
+            I(-3_500_000), // 0x30 travel min
+            I(100),        // 0x36 settling window
+            F(0.02),       // 0x3F settling time
+            F(1500.0),     // 0x1001 drive frequency
+            F(90.0),       // 0x1002 maximum drive
+            F(0.5),        // 0x1003 speed share
+            F(0.6),        // 0x1004 thrust share
+            B(0),          // 0x1005 feedforward
+            F(0.004),      // 0x1006 plain kp
+            F(0.3),        // 0x1007 plain ki
+            F(-1.25),      // 0x1008 expected load
+            F(3000.0),     // 0x1009 profile wait lag
+            F(250_000.0),  // 0x100A approach speed
+            F(500.0),      // 0x100B fine window
+            F(0.08),       // 0x100D stall time
+            I32(300),      // 0x100E encoder jump
+            F(4.0),        // 0x100F preload min
+            F(20.0),       // 0x1010 preload max
+            W(7),          // 0x1011 zero word
+            F(0.0125),     // 0x1012 N per word
+            W(3),          // 0x1013 lowest valid word
+            W(4000),       // 0x1014 highest valid word
+            F(0.05),       // 0x1015 filter
+            B(1),          // 0x1016 reference signal: negative limit
+            I(-1_000_000), // 0x1017 reference position
+            F(40.0),       // 0x1018 reference drive
+            F(100.0),      // 0x1019 reference timeout
         ],
     );
     assert_eq!(VERSION, 2);
@@ -348,35 +348,35 @@ fn version_1_record_still_loads() {
     let v1 = record(
         1,
         &[
-            U32(50),           // encoder resolution (read-only)
-            W(7),              // zero word
-            F(0.0125),         // N per word
-            W(3),              // lowest valid word
-            W(4000),           // highest valid word
-            F(0.05),           // filter
-            F(4.0),            // preload min
-            F(20.0),           // preload max
-            F(90.0),           // maximum drive
-            F(40_000.0),       // following error (nm)
-            F(0.08),           // stall time
-            I32(300),          // encoder jump
-            I(-3_500_000),     // travel min (nm)
-            I(20_000_000),     // travel max
-            I(100),            // settling window
-            F(0.02),           // settling time
-            F(1500.0),         // drive frequency
-            F(0.5),            // speed share
-            F(0.6),            // thrust share
-            F(55.5),           // kp
-            F(0.002),          // ki
-            B(0),              // feedforward
-            F(0.004),          // plain kp
-            F(0.3),            // plain ki
-            F(-1.25),          // expected load
-            F(3000.0),         // profile wait lag
-            F(250_000.0),      // approach speed
-            F(500.0),          // fine window
-            F(0.5),            // fine-mode gain (no longer a setting)
+            U32(50),       // encoder resolution (read-only)
+            W(7),          // zero word
+            F(0.0125),     // N per word
+            W(3),          // lowest valid word
+            W(4000),       // highest valid word
+            F(0.05),       // filter
+            F(4.0),        // preload min
+            F(20.0),       // preload max
+            F(90.0),       // maximum drive
+            F(40_000.0),   // following error (nm)
+            F(0.08),       // stall time
+            I32(300),      // encoder jump
+            I(-3_500_000), // travel min (nm)
+            I(20_000_000), // travel max
+            I(100),        // settling window
+            F(0.02),       // settling time
+            F(1500.0),     // drive frequency
+            F(0.5),        // speed share
+            F(0.6),        // thrust share
+            F(55.5),       // kp
+            F(0.002),      // ki
+            B(0),          // feedforward
+            F(0.004),      // plain kp
+            F(0.3),        // plain ki
+            F(-1.25),      // expected load
+            F(3000.0),     // profile wait lag
+            F(250_000.0),  // approach speed
+            F(500.0),      // fine window
+            F(0.5),        // fine-mode gain (no longer a setting)
         ],
     );
     assert_eq!(v1.len(), 8 + 119 + 4);

@@ -183,7 +183,9 @@ fn range_text(s: &Setting) -> String {
 /// The parameters, from the core's settings table ([`piezo_drive::settings::SETTINGS`]).
 pub fn parameters_table() -> String {
     let defaults = piezo_drive::defaults::controller_config();
-    let mut t = String::from("| id | setting | unit | range | default | kept | description |\n|---|---|---|---|---|---|---|\n");
+    let mut t = String::from(
+        "| id | setting | unit | range | default | kept | description |\n|---|---|---|---|---|---|---|\n",
+    );
     for s in SETTINGS {
         let value = gcs_text(s, (s.get)(&defaults));
         let default = match s.default {

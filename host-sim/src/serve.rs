@@ -165,7 +165,8 @@ impl VirtualController {
             start: Instant::now(),
             sim_start_s: 0.0,
         };
-        vc.board.stats.core_clock_hz = 1_000_000_000; // "cycles" are nanoseconds on the host
+        // "Cycles" are nanoseconds on the host.
+        vc.board.stats.core_clock_hz = 1_000_000_000;
         // Settle the force-cell filter before anyone talks to us.
         vc.sil.run_until(0.05, |_| false);
         vc.sim_start_s = vc.sil.time_s();
@@ -587,7 +588,10 @@ mod tests {
         // A new virtual controller starts with them, as the board does from flash.
         let mut again = VirtualController::new(&p, &a).unwrap();
         assert_eq!(again.sil.controller.config(), &expected);
-        assert_eq!(send(&mut again, "VEL?\nTMX?\nSPA? 1 0x1019\nERR?\n"), "1=1.5\n1=20.000000\n1 0x1019=100\n0\n");
+        assert_eq!(
+            send(&mut again, "VEL?\nTMX?\nSPA? 1 0x1019\nERR?\n"),
+            "1=1.5\n1=20.000000\n1 0x1019=100\n0\n"
+        );
         // A file that is not a record is refused with the reason.
         std::fs::write(&path, "SPA 1 0xA 1.5\n").unwrap();
         let e = VirtualController::new(&p, &a).err().expect("a text file is not a record").to_string();

@@ -115,7 +115,8 @@ fn wpa_then_restart_brings_back_every_stored_parameter_and_nothing_else() {
     let c = &mut expected;
     (c.kp_per_s, c.ki_n_per_nm_s, c.following_error_limit_nm) = (55.5, 0.002, 40_000.0);
     (c.velocity_max_nm_s, c.accel_max_nm_s2, c.decel_max_nm_s2) = (1.5e6, 5e8, 2.5e8);
-    (c.travel_max_nm, c.travel_min_nm, c.on_target_window_nm, c.settle_time_s) = (20_000_000, -3_500_000, 100, 0.02);
+    (c.travel_max_nm, c.travel_min_nm, c.on_target_window_nm, c.settle_time_s) =
+        (20_000_000, -3_500_000, 100, 0.02);
     (c.drive_freq_hz, c.max_drive_v, c.speed_fraction, c.accel_fraction) = (1500.0, 90.0, 0.5, 0.6);
     (c.feedforward, c.fb_kp_v_per_nm, c.fb_ki_v_per_nm_s, c.expected_load_n) = (false, 0.004, 0.3, -1.25);
     (c.profile_wait_lag_nm, c.approach_speed_nm_s, c.fine_window_nm) = (3000.0, 250_000.0, 500.0);

@@ -13,8 +13,7 @@ pub mod params;
 
 use crate::controller::{validate_settings, CommandError, Controller, ControllerConfig, FaultCode, State};
 use num::{
-    parse_decimal, parse_int, write_fixed, write_general, write_i64, write_scaled, write_u64,
-    Decimal,
+    parse_decimal, parse_int, write_fixed, write_general, write_i64, write_scaled, write_u64, Decimal,
 };
 
 pub const REPLY_CAPACITY: usize = 4096;

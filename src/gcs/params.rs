@@ -3,8 +3,8 @@
 //! here; ids, ranges, descriptions and what is stored are the table's.
 
 use super::num::{write_f32, write_i64, write_scaled, Decimal, Sink};
-pub use crate::settings::{find, Kind, Setting as Param, SETTINGS as PARAMS};
 use crate::settings::Value;
+pub use crate::settings::{find, Kind, Setting as Param, SETTINGS as PARAMS};
 
 fn nm(mm: f64) -> Option<i64> {
     let x = mm * 1e6;
