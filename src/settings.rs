@@ -90,6 +90,7 @@ pub enum Range {
 }
 
 impl Range {
+    #[inline(always)]
     pub fn contains(&self, v: Value) -> bool {
         match (*self, v) {
             (Range::Float { lo, hi, lo_open }, Value::F32(x)) => {
@@ -173,10 +174,16 @@ pub trait Field: Sized {
     fn to_value(self) -> Value;
     /// None when `v` is not of this type or does not fit.
     fn from_value(v: Value) -> Option<Self>;
+    /// Whether the value is in `range` (inlined with a constant range, a compare or two).
+    #[inline(always)]
+    fn within(self, range: &Range) -> bool {
+        range.contains(self.to_value())
+    }
 }
 
 impl Field for f32 {
     const TY: Ty = Ty::F32;
+    #[inline(always)]
     fn to_value(self) -> Value {
         Value::F32(self)
     }
@@ -192,6 +199,7 @@ macro_rules! int_field {
     ($t:ty, $ty:expr) => {
         impl Field for $t {
             const TY: Ty = $ty;
+            #[inline(always)]
             fn to_value(self) -> Value {
                 Value::Int(i64::from(self))
             }
@@ -211,6 +219,7 @@ int_field!(u16, Ty::U16);
 
 impl Field for bool {
     const TY: Ty = Ty::U8;
+    #[inline(always)]
     fn to_value(self) -> Value {
         Value::Int(i64::from(self))
     }
@@ -225,6 +234,7 @@ impl Field for bool {
 
 impl Field for ReferenceSignal {
     const TY: Ty = Ty::U8;
+    #[inline(always)]
     fn to_value(self) -> Value {
         Value::Int(match self {
             ReferenceSignal::Index => 0,
@@ -240,9 +250,18 @@ impl Field for ReferenceSignal {
     }
 }
 
-/// One row: `id, group, field: type = default, unit, scale, range, keep, description`; the
-/// default is a value of the field's type or `hardware("where it comes from")`.
+/// One row: `id, group, field: type = default; unit, scale, range, keep, description`; the
+/// default is a value of the field's type or `hardware("where it comes from")`. `@check c;` and
+/// a row: whether `c`'s field is in the row's range.
 macro_rules! setting {
+    (@check $c:ident; $id:literal, $group:literal, $($f:ident).+ : $t:ty = hardware($what:literal);
+     $unit:literal, $scale:literal, $range:expr, $($rest:tt)*) => {
+        Field::within($c.$($f).+, &$range)
+    };
+    (@check $c:ident; $id:literal, $group:literal, $($f:ident).+ : $t:ty = $default:expr;
+     $unit:literal, $scale:literal, $range:expr, $($rest:tt)*) => {
+        Field::within($c.$($f).+, &$range)
+    };
     ($id:literal, $group:literal, $($f:ident).+ : $t:ty = hardware($what:literal); $($rest:tt)*) => {
         setting!(@row $id, $group, $($f).+ : $t, DefaultValue::Hardware($what); $($rest)*)
     };
@@ -278,104 +297,115 @@ macro_rules! setting {
     };
 }
 
-/// The settings, in `SPA?`/`HPA?` order (by id). IDs 0x1–0x3F follow PI's numbering where PI
-/// has the same meaning; 0x1001 and up are ours. Ranges are in the field's unit (its name's
-/// suffix); the unit column is the protocol's.
-#[rustfmt::skip]
-pub static SETTINGS: &[Setting] = &[
+/// The table and the range check, from the rows (each in parentheses): the check is straight
+/// code, field by field, as cheap as one written by hand (it runs in `Controller::set_config`,
+/// which the board calls with the control tick held off).
+macro_rules! settings {
+    ($(#[$doc:meta])* pub static $name:ident; $(($($row:tt)*)),* $(,)?) => {
+        $(#[$doc])*
+        pub static $name: &[Setting] = &[$(setting!($($row)*)),*];
+
+        /// Whether every setting of `c` is within its own range (the rules between settings
+        /// are [`crate::controller::validate_settings`]'s).
+        pub fn each_in_range(c: &ControllerConfig) -> bool {
+            true $(&& setting!(@check c; $($row)*))*
+        }
+    };
+}
+
+settings! {
+    /// The settings, in `SPA?`/`HPA?` order (by id). IDs 0x1–0x3F follow PI's numbering where PI
+    /// has the same meaning; 0x1001 and up are ours. Ranges are in the field's unit (its name's
+    /// suffix); the unit column is the protocol's.
+    pub static SETTINGS;
+
     // id, group, field: type = default; GCS unit, field units per GCS unit, range, keep, description
-    setting!(0x1, "Servo", kp_per_s: f32 = 40.0;
+    (0x1, "Servo", kp_per_s: f32 = 40.0;
         "1/s", 1.0, NON_NEGATIVE, Stored, "Position feedback gain"),
-    setting!(0x2, "Servo", ki_n_per_nm_s: f32 = 1e-3;
+    (0x2, "Servo", ki_n_per_nm_s: f32 = 1e-3;
         "N per nm*s", 1.0, NON_NEGATIVE, Stored, "Load integrator gain"),
-    setting!(0x8, "Servo", following_error_limit_nm: f32 = 50_000.0;
+    (0x8, "Servo", following_error_limit_nm: f32 = 50_000.0;
         "mm", 1e6, POSITIVE, Stored, "Maximum position error"),
     // VEL/ACC/DEC: high enough that the thrust model's limits govern unless a user lowers them.
-    setting!(0xA, "Motion", velocity_max_nm_s: f32 = 10_000_000.0;
+    (0xA, "Motion", velocity_max_nm_s: f32 = 10_000_000.0;
         "mm/s", 1e6, POSITIVE, Stored, "Maximum closed-loop velocity"),
-    setting!(0xB, "Motion", accel_max_nm_s2: f32 = 1e9;
+    (0xB, "Motion", accel_max_nm_s2: f32 = 1e9;
         "mm/s^2", 1e6, POSITIVE, Stored, "Closed-loop acceleration"),
-    setting!(0xC, "Motion", decel_max_nm_s2: f32 = 1e9;
+    (0xC, "Motion", decel_max_nm_s2: f32 = 1e9;
         "mm/s^2", 1e6, POSITIVE, Stored, "Closed-loop deceleration"),
-    setting!(0x15, "Motion", travel_max_nm: i64 = 50_000_000;
+    (0x15, "Motion", travel_max_nm: i64 = 50_000_000;
         "mm", 1.0, TRAVEL, Stored, "Maximum travel in positive direction"),
-    setting!(0x30, "Motion", travel_min_nm: i64 = -50_000_000;
+    (0x30, "Motion", travel_min_nm: i64 = -50_000_000;
         "mm", 1.0, TRAVEL, Stored, "Maximum travel in negative direction"),
-    setting!(0x36, "Servo", on_target_window_nm: i64 = 50;
+    (0x36, "Servo", on_target_window_nm: i64 = 50;
         "mm", 1.0, Range::Int { lo: 0, hi: MAX_TRAVEL_NM }, Stored, "Settling window"),
-    setting!(0x3F, "Servo", settle_time_s: f32 = 0.01;
+    (0x3F, "Servo", settle_time_s: f32 = 0.01;
         "s", 1.0, NON_NEGATIVE, Stored, "Settling time"),
     // The top of the band gives the highest speed; the DAC's band is checked too.
-    setting!(0x1001, "Drive", drive_freq_hz: f32 = DRIVE_FREQ_HZ;
+    (0x1001, "Drive", drive_freq_hz: f32 = DRIVE_FREQ_HZ;
         "Hz", 1.0, POSITIVE, Stored, "Drive frequency of coarse motion"),
-    setting!(0x1002, "Drive", max_drive_v: f32 = hardware("the amplifier's output range");
+    (0x1002, "Drive", max_drive_v: f32 = hardware("the amplifier's output range");
         "V peak-to-peak", 1.0, POSITIVE, Stored, "Maximum drive amplitude"),
-    setting!(0x1003, "Motion", speed_fraction: f32 = 0.92;
+    (0x1003, "Motion", speed_fraction: f32 = 0.92;
         "", 1.0, FRACTION, Stored, "Share of the model no-load speed the profile uses"),
-    setting!(0x1004, "Motion", accel_fraction: f32 = 0.8;
+    (0x1004, "Motion", accel_fraction: f32 = 0.8;
         "", 1.0, FRACTION, Stored, "Share of the model thrust the profile uses"),
-    setting!(0x1005, "Servo", feedforward: bool = true;
+    (0x1005, "Servo", feedforward: bool = true;
         "", 1.0, FLAG, Stored, "Thrust-model feedforward (1 on, 0 plain PI feedback)"),
     // Plain PI (feedforward off): full drive at 20 µm of error, integral time 10 ms.
-    setting!(0x1006, "Servo", fb_kp_v_per_nm: f32 = 100.0 / 20_000.0;
+    (0x1006, "Servo", fb_kp_v_per_nm: f32 = 100.0 / 20_000.0;
         "V per nm", 1.0, NON_NEGATIVE, Stored, "Plain-feedback proportional gain"),
-    setting!(0x1007, "Servo", fb_ki_v_per_nm_s: f32 = 100.0 / 20_000.0 / 0.01;
+    (0x1007, "Servo", fb_ki_v_per_nm_s: f32 = 100.0 / 20_000.0 / 0.01;
         "V per nm*s", 1.0, NON_NEGATIVE, Stored, "Plain-feedback integral gain"),
-    setting!(0x1008, "Servo", expected_load_n: f32 = 0.0;
+    (0x1008, "Servo", expected_load_n: f32 = 0.0;
         "N", 1.0, ANY, Stored, "Expected load along +x"),
-    setting!(0x1009, "Motion", profile_wait_lag_nm: f32 = 2_000.0;
+    (0x1009, "Motion", profile_wait_lag_nm: f32 = 2_000.0;
         "mm", 1e6, POSITIVE, Stored, "Lag at which the profile waits for the slider"),
-    setting!(0x100A, "Motion", approach_speed_nm_s: f32 = 200_000.0;
+    (0x100A, "Motion", approach_speed_nm_s: f32 = 200_000.0;
         "mm/s", 1e6, POSITIVE, Stored, "Least final approach speed"),
-    setting!(0x100B, "Servo", fine_window_nm: f32 = 300.0;
+    (0x100B, "Servo", fine_window_nm: f32 = 300.0;
         "mm", 1e6, NON_NEGATIVE, Stored, "Fine-mode window"),
-    setting!(0x100D, "Supervision", stall_time_s: f32 = 0.05;
+    (0x100D, "Supervision", stall_time_s: f32 = 0.05;
         "s", 1.0, POSITIVE, Stored, "Stall detection time"),
     // The 16-bit encoder counter is unwrapped by its change per period, taken as an i16: a
     // larger limit could never trip.
-    setting!(0x100E, "Supervision", encoder_jump_counts: i32 = 200;
+    (0x100E, "Supervision", encoder_jump_counts: i32 = 200;
         "counts per period", 1.0, Range::Int { lo: 1, hi: i16::MAX as i64 }, Stored,
         "Encoder jump limit"),
     // Below about 3 N contact is unreliable (physics.md §2).
-    setting!(0x100F, "Preload", preload_min_n: f32 = 3.0;
+    (0x100F, "Preload", preload_min_n: f32 = 3.0;
         "N", 1.0, NON_NEGATIVE, Stored, "Preload window minimum"),
-    setting!(0x1010, "Preload", preload_max_n: f32 =
+    (0x1010, "Preload", preload_max_n: f32 =
         hardware("the highest preload at which full drive still lifts the foot off, physics.md §2");
         "N", 1.0, NON_NEGATIVE, Stored, "Preload window maximum"),
-    setting!(0x1011, "Preload", preload.zero_word: u16 = 0;
+    (0x1011, "Preload", preload.zero_word: u16 = 0;
         "", 1.0, WORD, Stored, "Force cell zero word"),
-    setting!(0x1012, "Preload", preload.newton_per_word: f32 =
+    (0x1012, "Preload", preload.newton_per_word: f32 =
         hardware("the force cell's full scale over its full-scale word");
         "N per word", 1.0, ANY, Stored, "Force cell scale"),
-    setting!(0x1013, "Preload", preload.min_valid_word: u16 = 0;
+    (0x1013, "Preload", preload.min_valid_word: u16 = 0;
         "", 1.0, WORD, Stored, "Force cell lowest valid word"),
-    setting!(0x1014, "Preload", preload.max_valid_word: u16 = hardware("the force cell's full-scale word");
+    (0x1014, "Preload", preload.max_valid_word: u16 = hardware("the force cell's full-scale word");
         "", 1.0, WORD, Stored, "Force cell highest valid word"),
-    setting!(0x1015, "Preload", preload.filter_alpha: f32 = 0.01;
+    (0x1015, "Preload", preload.filter_alpha: f32 = 0.01;
         "", 1.0, FRACTION, Stored, "Force cell filter coefficient per period"),
-    setting!(0x1016, "Referencing", reference_signal: ReferenceSignal = ReferenceSignal::Index;
+    (0x1016, "Referencing", reference_signal: ReferenceSignal = ReferenceSignal::Index;
         "", 1.0, FLAG, Stored, "Reference signal (0 encoder index, 1 negative limit switch)"),
-    setting!(0x1017, "Referencing", reference_position_nm: i64 = 0;
+    (0x1017, "Referencing", reference_position_nm: i64 = 0;
         "mm", 1.0, TRAVEL, Stored, "Position given to the reference mark"),
-    setting!(0x1018, "Referencing", reference_drive_v: f32 = 50.0;
+    (0x1018, "Referencing", reference_drive_v: f32 = 50.0;
         "V", 1.0, POSITIVE, Stored, "Drive amplitude of the reference search"),
-    setting!(0x1019, "Referencing", reference_timeout_s: f32 = 200.0;
+    (0x1019, "Referencing", reference_timeout_s: f32 = 200.0;
         "s", 1.0, POSITIVE, Stored, "Reference search timeout"),
-    setting!(0x1020, "Hardware", encoder_nm_per_count: u32 = hardware("the encoder's resolution");
+    (0x1020, "Hardware", encoder_nm_per_count: u32 = hardware("the encoder's resolution");
         "nm per count", 1.0, Range::Int { lo: 1, hi: 1_000_000 }, ReadOnly, "Encoder resolution"),
-    setting!(0x1021, "Hardware", loop_hz: u32 = hardware("the DAC rate over 20 samples per period");
+    (0x1021, "Hardware", loop_hz: u32 = hardware("the DAC rate over 20 samples per period");
         "Hz", 1.0, Range::Int { lo: 1, hi: u32::MAX as i64 }, ReadOnly, "Control loop rate"),
-];
+}
 
 /// The setting with this GCS id.
 pub fn find(id: i64) -> Option<&'static Setting> {
     SETTINGS.iter().find(|s| i64::from(s.id) == id)
-}
-
-/// Whether every setting of `c` is within its own range (the rules between settings are
-/// [`crate::controller::validate_settings`]'s).
-pub fn each_in_range(c: &ControllerConfig) -> bool {
-    SETTINGS.iter().all(|s| s.range.contains((s.get)(c)))
 }
 
 /// Sets every setting with a fixed default to it (the hardware's are the caller's).
