@@ -319,7 +319,8 @@ settings! {
     /// suffix); the unit column is the protocol's.
     pub static SETTINGS;
 
-    // id, group, field: type = default; GCS unit, field units per GCS unit, range, keep, description
+    // id, group, field: type = default; GCS unit, field units per GCS unit (f32 fields; an i64 nm
+    // field is always shown in mm), range in the field's unit, keep, description
     (0x1, "Servo", kp_per_s: f32 = 40.0;
         "1/s", 1.0, NON_NEGATIVE, Stored, "Position feedback gain"),
     (0x2, "Servo", ki_n_per_nm_s: f32 = 1e-3;
