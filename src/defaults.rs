@@ -1,11 +1,12 @@
 //! The firmware's default settings: the prototype motor (baked table in [`crate::motor_table`])
-//! on the reference board — 12-bit DAC at 200 kS/s into a 0–100 V amplifier, 50 nm encoder,
-//! 12-bit force-cell word over 0–50 N — and controller gains tuned in host-sim against the plant.
-//! host-sim derives its board from a parameter file and a test checks that, for the prototype
+//! on the reference board ([`REFERENCE_BOARD`]), with the fixed defaults of the settings table
+//! ([`crate::settings::SETTINGS`]: controller gains tuned in host-sim against the plant). host-sim
+//! derives its [`Hardware`] from a parameter file and a test checks that, for the prototype
 //! file, it arrives at exactly these values.
 
 use crate::controller::{ControllerConfig, ReferenceSignal, DAC_SAMPLES_PER_STEP};
 use crate::generator::DacConfig;
+use crate::model::MotorConstants;
 use crate::motor_table::PROTOTYPE_MOTOR;
 use crate::sensors::PreloadCalibration;
 use crate::Fx;
@@ -28,62 +29,118 @@ pub fn full_contact_preload_n(cfg: &ControllerConfig) -> f32 {
         .to_num()
 }
 
+/// What the defaults depend on besides the settings table: the hardware the firmware is built
+/// for (host-sim derives one from a parameter file).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hardware {
+    /// Control loop rate: one controller step per [`DAC_SAMPLES_PER_STEP`] DAC samples.
+    pub loop_hz: u32,
+    /// DAC and amplifier: output range, sample rate, drive band, slew limit.
+    pub dac: DacConfig,
+    /// The motor table.
+    pub motor: MotorConstants,
+    pub encoder_nm_per_count: u32,
+    /// Force cell: newtons per ADC word and the full-scale word.
+    pub force_cell_newton_per_word: f32,
+    pub force_cell_max_word: u16,
+}
+
+/// The reference board with the prototype motor: 12-bit DAC at 200 kS/s into a 0–100 V
+/// amplifier, 50 nm encoder, 12-bit force-cell word over 0–50 N.
+pub const REFERENCE_BOARD: Hardware = Hardware {
+    loop_hz: LOOP_HZ,
+    dac: DacConfig {
+        full_scale_v: 100.0,
+        min_v: 0.0,
+        max_v: 100.0,
+        sample_rate_hz: DAC_RATE_HZ,
+        min_freq_hz: 500.0,
+        max_freq_hz: 2200.0,
+        slew_v_per_sample: 0.5,
+    },
+    motor: PROTOTYPE_MOTOR,
+    encoder_nm_per_count: 50,
+    force_cell_newton_per_word: 50.0 / 4095.0,
+    force_cell_max_word: 4095,
+};
+
 /// Defaults for the reference board and the prototype motor.
 pub fn controller_config() -> ControllerConfig {
+    controller_config_for(&REFERENCE_BOARD)
+}
+
+/// Defaults for `hw`: every setting's fixed default from [`crate::settings::SETTINGS`], the
+/// others from the hardware.
+pub fn controller_config_for(hw: &Hardware) -> ControllerConfig {
+    with_defaults(hw, Unset::Zero)
+}
+
+/// What a setting holds before its default is applied (see [`with_defaults`]).
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Unset {
+    Zero,
+    /// NaN, all-ones integers, true, the second choice.
+    Odd,
+}
+
+/// The defaults for `hw`, starting from every setting at `unset`: the result does not depend
+/// on `unset` exactly when every setting gets its default from the table or the hardware
+/// (`tests/storage.rs` checks that).
+#[doc(hidden)]
+pub fn with_defaults(hw: &Hardware, unset: Unset) -> ControllerConfig {
+    let odd = unset == Unset::Odd;
+    let (f, w, n) = if odd { (f32::NAN, u16::MAX, -1i64) } else { (0.0, 0, 0) };
+    let reference_signal = if odd { ReferenceSignal::NegativeLimit } else { ReferenceSignal::Index };
+    // Rust needs every field for the struct; the values come below.
     let mut cfg = ControllerConfig {
-        loop_hz: LOOP_HZ,
-        dac: DacConfig {
-            full_scale_v: 100.0,
-            min_v: 0.0,
-            max_v: 100.0,
-            sample_rate_hz: DAC_RATE_HZ,
-            min_freq_hz: 500.0,
-            max_freq_hz: 2200.0,
-            slew_v_per_sample: 0.5,
-        },
-        motor: PROTOTYPE_MOTOR,
-        encoder_nm_per_count: 50,
+        loop_hz: hw.loop_hz,
+        dac: hw.dac,
+        motor: hw.motor,
+        encoder_nm_per_count: n as u32,
         preload: PreloadCalibration {
-            zero_word: 0,
-            newton_per_word: 50.0 / 4095.0,
-            min_valid_word: 0,
-            max_valid_word: 4095,
-            filter_alpha: 0.01,
+            zero_word: w,
+            newton_per_word: f,
+            min_valid_word: w,
+            max_valid_word: w,
+            filter_alpha: f,
         },
-        // Below about 3 N contact is unreliable (physics.md §2); the top is set below.
-        preload_min_n: 3.0,
-        preload_max_n: 0.0,
-        drive_freq_hz: DRIVE_FREQ_HZ,
-        max_drive_v: 100.0,
-        speed_fraction: 0.92,
-        accel_fraction: 0.8,
-        kp_per_s: 40.0,
-        ki_n_per_nm_s: 1e-3,
-        feedforward: true,
-        // Plain PI (feedforward off): full drive at 20 µm of error, integral time 10 ms.
-        fb_kp_v_per_nm: 100.0 / 20_000.0,
-        fb_ki_v_per_nm_s: 100.0 / 20_000.0 / 0.01,
-        expected_load_n: 0.0,
-        profile_wait_lag_nm: 2_000.0,
-        approach_speed_nm_s: 200_000.0,
-        fine_window_nm: 300.0,
-        fine_gain: 0.5,
-        on_target_window_nm: 50,
-        settle_time_s: 0.01,
-        following_error_limit_nm: 50_000.0,
-        stall_time_s: 0.05,
-        encoder_jump_counts: 200,
-        travel_min_nm: -50_000_000,
-        travel_max_nm: 50_000_000,
-        // VEL/ACC/DEC: high enough that the thrust model's limits govern unless a user lowers them.
-        velocity_max_nm_s: 10_000_000.0,
-        accel_max_nm_s2: 1e9,
-        decel_max_nm_s2: 1e9,
-        reference_signal: ReferenceSignal::Index,
-        reference_position_nm: 0,
-        reference_drive_v: 50.0,
-        reference_timeout_s: 200.0,
+        preload_min_n: f,
+        preload_max_n: f,
+        drive_freq_hz: f,
+        max_drive_v: f,
+        speed_fraction: f,
+        accel_fraction: f,
+        kp_per_s: f,
+        ki_n_per_nm_s: f,
+        feedforward: odd,
+        fb_kp_v_per_nm: f,
+        fb_ki_v_per_nm_s: f,
+        expected_load_n: f,
+        profile_wait_lag_nm: f,
+        approach_speed_nm_s: f,
+        fine_window_nm: f,
+        on_target_window_nm: n,
+        settle_time_s: f,
+        following_error_limit_nm: f,
+        stall_time_s: f,
+        encoder_jump_counts: n as i32,
+        travel_min_nm: n,
+        travel_max_nm: n,
+        velocity_max_nm_s: f,
+        accel_max_nm_s2: f,
+        decel_max_nm_s2: f,
+        reference_signal,
+        reference_position_nm: n,
+        reference_drive_v: f,
+        reference_timeout_s: f,
     };
+    crate::settings::apply_fixed_defaults(&mut cfg);
+    // The settings whose default is `hardware(..)` in the table.
+    cfg.encoder_nm_per_count = hw.encoder_nm_per_count;
+    cfg.max_drive_v = hw.dac.max_v - hw.dac.min_v;
+    cfg.preload.newton_per_word = hw.force_cell_newton_per_word;
+    cfg.preload.max_valid_word = hw.force_cell_max_word;
     cfg.preload_max_n = full_contact_preload_n(&cfg);
     cfg
 }

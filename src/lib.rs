@@ -6,6 +6,7 @@
 //! - [`model`]: fixed-point steady-state thrust model and its inverse (the feedforward);
 //! - [`profile`]: online trapezoidal motion profile;
 //! - [`controller`]: state machine, position control, supervision; one entry point `step`;
+//! - [`settings`]: every controller setting declared once (id, unit, range, default, storage);
 //! - [`storage`]: the flash parameter record (encode/decode with version and CRC);
 //! - [`gcs`]: the PI GCS 2.0 command protocol (UART on the board, TCP or a pty in `host-sim serve`);
 //! - [`defaults`]: the firmware's default settings, with the baked motor table [`motor_table`].
@@ -23,6 +24,7 @@ pub mod pil_wire;
 pub mod profile;
 pub mod safety;
 pub mod sensors;
+pub mod settings;
 pub mod storage;
 pub mod trig;
 

@@ -1,8 +1,10 @@
-//! The parameter record kept in flash: the settable part of [`ControllerConfig`] (calibration,
-//! limits, controller gains), little-endian, with a magic word, a format version, the payload
-//! length and a CRC-32 over all of it. Pure functions; the firmware's flash task only moves the
-//! bytes. [`decode`] never panics on arbitrary bytes and checks every value's range, so a record
-//! that decodes is one the controller accepts.
+//! The parameter record kept in flash: every setting marked `Stored` in
+//! [`crate::settings::SETTINGS`] (calibration, limits, gains, motion limits, referencing),
+//! little-endian, with a magic word, a format version, the payload length and a CRC-32 over all
+//! of it. Pure functions; the firmware's flash task only moves the bytes, and `host-sim serve`
+//! keeps the very same bytes in its `--store` file. [`decode`] never panics on arbitrary bytes
+//! and checks every value with the controller's own validator, so a record that decodes is one
+//! the controller accepts, and a configuration the controller accepts can be stored.
 //!
 //! Layout (all little-endian):
 //!
@@ -11,25 +13,115 @@
 //! | 0 | 4 | magic `"PZDP"` |
 //! | 4 | 2 | format version ([`VERSION`]) |
 //! | 6 | 2 | payload length ([`PAYLOAD_LEN`]) |
-//! | 8 | [`PAYLOAD_LEN`] | fields, in the order of [`encode`] |
+//! | 8 | [`PAYLOAD_LEN`] | the stored settings in table order, each in its type's width ([`crate::settings::Ty::size`]) |
 //! | 8 + [`PAYLOAD_LEN`] | 4 | CRC-32 (ISO-HDLC, as zlib) of bytes 0 .. 8 + [`PAYLOAD_LEN`] |
 //!
 //! Not stored (board or build constants, taken from the defaults passed to [`decode`]): the loop
-//! rate, the DAC/amplifier description and the motor table.
+//! rate, the DAC/amplifier description, the encoder resolution and the motor table.
+//!
+//! Version 1 (before the settings table) still loads: it lacked the motion limits (`VEL`, `ACC`,
+//! `DEC`) and the referencing settings, which then come from the defaults; its encoder
+//! resolution (read-only, so always the build's) and the removed fine-mode gain are skipped.
 
-use crate::controller::{Controller, ControllerConfig};
+use crate::controller::{validate_settings, Controller, ControllerConfig};
+use crate::settings::{Setting, Ty, Value, SETTINGS};
 
 /// `"PZDP"` read as a little-endian u32.
 pub const MAGIC: u32 = u32::from_le_bytes(*b"PZDP");
-/// Format version; bump on any change of the payload.
-pub const VERSION: u16 = 1;
+/// Format version; bump on any change of the payload (adding, removing, reordering a stored
+/// setting or changing its type), and teach [`decode`] the old layout.
+pub const VERSION: u16 = 2;
 const HEADER_LEN: usize = 8;
+const CRC_LEN: usize = 4;
+
+const fn stored_len() -> usize {
+    let mut n = 0;
+    let mut rest = SETTINGS;
+    while let [s, tail @ ..] = rest {
+        if s.stored {
+            n += s.ty.size();
+        }
+        rest = tail;
+    }
+    n
+}
+
 /// Payload bytes of format [`VERSION`].
-pub const PAYLOAD_LEN: usize = 4 + 2 + 4 + 2 + 2 + 4 // calibration
-    + 4 * 5 + 4 + 8 * 3 + 4 // limits
-    + 4 * 5 + 1 + 4 * 7; // gains
+pub const PAYLOAD_LEN: usize = stored_len();
 /// Whole record: header, payload, CRC.
-pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + 4;
+pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + CRC_LEN;
+
+/// A field of a version-1 record: a setting (by id, in its table type) or bytes no longer used.
+#[derive(Clone, Copy)]
+enum Old {
+    Setting(u32),
+    Skip(usize),
+}
+
+/// Version 1's payload, in order.
+const V1_FIELDS: [Old; 29] = [
+    // Calibration: encoder resolution (skipped: read-only, the build's value counts), force cell.
+    Old::Skip(4),
+    Old::Setting(0x1011),
+    Old::Setting(0x1012),
+    Old::Setting(0x1013),
+    Old::Setting(0x1014),
+    Old::Setting(0x1015),
+    // Limits: preload window, drive, following error, stall, encoder jump, travel, on target.
+    Old::Setting(0x100F),
+    Old::Setting(0x1010),
+    Old::Setting(0x1002),
+    Old::Setting(0x8),
+    Old::Setting(0x100D),
+    Old::Setting(0x100E),
+    Old::Setting(0x30),
+    Old::Setting(0x15),
+    Old::Setting(0x36),
+    Old::Setting(0x3F),
+    // Gains.
+    Old::Setting(0x1001),
+    Old::Setting(0x1003),
+    Old::Setting(0x1004),
+    Old::Setting(0x1),
+    Old::Setting(0x2),
+    Old::Setting(0x1005),
+    Old::Setting(0x1006),
+    Old::Setting(0x1007),
+    Old::Setting(0x1008),
+    Old::Setting(0x1009),
+    Old::Setting(0x100A),
+    Old::Setting(0x100B),
+    // The fine-mode gain (0x100C), which the controller never read: removed.
+    Old::Skip(4),
+];
+
+const fn setting_size(id: u32) -> usize {
+    let mut rest = SETTINGS;
+    while let [s, tail @ ..] = rest {
+        if s.id == id {
+            return s.ty.size();
+        }
+        rest = tail;
+    }
+    usize::MAX / 2 // not a setting: fails the length check below
+}
+
+const fn v1_len() -> usize {
+    let mut n = 0;
+    let mut rest: &[Old] = &V1_FIELDS;
+    while let [field, tail @ ..] = rest {
+        n += match *field {
+            Old::Setting(id) => setting_size(id),
+            Old::Skip(k) => k,
+        };
+        rest = tail;
+    }
+    n
+}
+
+/// Payload bytes of format version 1.
+pub const V1_PAYLOAD_LEN: usize = 119;
+const _: () = assert!(v1_len() == V1_PAYLOAD_LEN);
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -46,7 +138,7 @@ pub enum StorageError {
 }
 
 /// CRC-32/ISO-HDLC (the zlib/Ethernet CRC): reflected polynomial 0xEDB88320, init and final XOR
-/// 0xFFFFFFFF. Bitwise: the record is 150 bytes and written rarely; no table needed.
+/// 0xFFFFFFFF. Bitwise: the record is about 150 bytes and written rarely; no table needed.
 pub fn crc32(bytes: &[u8]) -> u32 {
     let mut crc = 0xFFFF_FFFFu32;
     for &b in bytes {
@@ -73,8 +165,18 @@ impl Writer {
             self.pos += 1;
         }
     }
-    fn f32(&mut self, v: f32) {
-        self.put(&v.to_le_bytes());
+    /// `v` in the width of `ty` (a value of the field's own type, so the casts are exact).
+    fn value(&mut self, ty: Ty, v: Value) {
+        match (ty, v) {
+            (Ty::F32, Value::F32(x)) => self.put(&x.to_le_bytes()),
+            (Ty::I64Nm, Value::Int(x)) => self.put(&x.to_le_bytes()),
+            (Ty::U32, Value::Int(x)) => self.put(&(x as u32).to_le_bytes()),
+            (Ty::I32, Value::Int(x)) => self.put(&(x as i32).to_le_bytes()),
+            (Ty::U16, Value::Int(x)) => self.put(&(x as u16).to_le_bytes()),
+            (Ty::U8, Value::Int(x)) => self.put(&[x as u8]),
+            // A row whose type and value disagree cannot be built (see `settings::Field`).
+            _ => self.put([0; 8].get(..ty.size()).unwrap_or(&[])),
+        }
     }
 }
 
@@ -90,26 +192,39 @@ impl Reader<'_> {
         self.pos = end;
         s.try_into().map_err(|_| StorageError::TooShort)
     }
+    fn skip(&mut self, n: usize) -> Result<(), StorageError> {
+        let end = self.pos.checked_add(n).ok_or(StorageError::TooShort)?;
+        self.bytes.get(self.pos..end).ok_or(StorageError::TooShort)?;
+        self.pos = end;
+        Ok(())
+    }
     fn u16(&mut self) -> Result<u16, StorageError> {
         Ok(u16::from_le_bytes(self.take()?))
     }
     fn u32(&mut self) -> Result<u32, StorageError> {
         Ok(u32::from_le_bytes(self.take()?))
     }
-    fn i32(&mut self) -> Result<i32, StorageError> {
-        Ok(i32::from_le_bytes(self.take()?))
+    fn value(&mut self, ty: Ty) -> Result<Value, StorageError> {
+        Ok(match ty {
+            Ty::F32 => Value::F32(f32::from_le_bytes(self.take()?)),
+            Ty::I64Nm => Value::Int(i64::from_le_bytes(self.take()?)),
+            Ty::U32 => Value::Int(i64::from(self.u32()?)),
+            Ty::I32 => Value::Int(i64::from(i32::from_le_bytes(self.take()?))),
+            Ty::U16 => Value::Int(i64::from(self.u16()?)),
+            Ty::U8 => {
+                let [b] = self.take::<1>()?;
+                Value::Int(i64::from(b))
+            }
+        })
     }
-    fn i64(&mut self) -> Result<i64, StorageError> {
-        Ok(i64::from_le_bytes(self.take()?))
-    }
-    fn f32(&mut self) -> Result<f32, StorageError> {
-        Ok(f32::from_le_bytes(self.take()?))
-    }
-    fn bool(&mut self) -> Result<bool, StorageError> {
-        match self.take::<1>()? {
-            [0] => Ok(false),
-            [1] => Ok(true),
-            _ => Err(StorageError::OutOfRange),
+    /// Reads `s`'s value into `cfg`; out of range when it does not fit the field (a bool byte
+    /// other than 0 or 1, an unknown choice).
+    fn setting(&mut self, s: &Setting, cfg: &mut ControllerConfig) -> Result<(), StorageError> {
+        let v = self.value(s.ty)?;
+        if (s.set)(cfg, v) {
+            Ok(())
+        } else {
+            Err(StorageError::OutOfRange)
         }
     }
 }
@@ -120,91 +235,39 @@ pub fn encode(cfg: &ControllerConfig) -> [u8; RECORD_LEN] {
     w.put(&MAGIC.to_le_bytes());
     w.put(&VERSION.to_le_bytes());
     w.put(&(PAYLOAD_LEN as u16).to_le_bytes());
-    // Calibration.
-    w.put(&cfg.encoder_nm_per_count.to_le_bytes());
-    w.put(&cfg.preload.zero_word.to_le_bytes());
-    w.f32(cfg.preload.newton_per_word);
-    w.put(&cfg.preload.min_valid_word.to_le_bytes());
-    w.put(&cfg.preload.max_valid_word.to_le_bytes());
-    w.f32(cfg.preload.filter_alpha);
-    // Limits.
-    w.f32(cfg.preload_min_n);
-    w.f32(cfg.preload_max_n);
-    w.f32(cfg.max_drive_v);
-    w.f32(cfg.following_error_limit_nm);
-    w.f32(cfg.stall_time_s);
-    w.put(&cfg.encoder_jump_counts.to_le_bytes());
-    w.put(&cfg.travel_min_nm.to_le_bytes());
-    w.put(&cfg.travel_max_nm.to_le_bytes());
-    w.put(&cfg.on_target_window_nm.to_le_bytes());
-    w.f32(cfg.settle_time_s);
-    // Gains.
-    w.f32(cfg.drive_freq_hz);
-    w.f32(cfg.speed_fraction);
-    w.f32(cfg.accel_fraction);
-    w.f32(cfg.kp_per_s);
-    w.f32(cfg.ki_n_per_nm_s);
-    w.put(&[u8::from(cfg.feedforward)]);
-    w.f32(cfg.fb_kp_v_per_nm);
-    w.f32(cfg.fb_ki_v_per_nm_s);
-    w.f32(cfg.expected_load_n);
-    w.f32(cfg.profile_wait_lag_nm);
-    w.f32(cfg.approach_speed_nm_s);
-    w.f32(cfg.fine_window_nm);
-    w.f32(cfg.fine_gain);
-    debug_assert_eq!(w.pos, HEADER_LEN + PAYLOAD_LEN);
+    for s in SETTINGS.iter().filter(|s| s.stored) {
+        w.value(s.ty, (s.get)(cfg));
+    }
     let crc = crc32(w.buf.get(..HEADER_LEN + PAYLOAD_LEN).unwrap_or(&[]));
     w.put(&crc.to_le_bytes());
     w.buf
 }
 
-fn in_range(v: f32, lo: f32, hi: f32) -> bool {
-    v.is_finite() && v >= lo && v <= hi
+/// Offset in the record of a stored setting's value (None for an id not stored).
+pub fn offset_of(id: u32) -> Option<usize> {
+    let mut at = HEADER_LEN;
+    for s in SETTINGS.iter().filter(|s| s.stored) {
+        if s.id == id {
+            return Some(at);
+        }
+        at += s.ty.size();
+    }
+    None
 }
 
-/// Whether the settable fields of `cfg` are within the ranges [`decode`] accepts (also usable
-/// before storing a configuration changed over the protocol).
+/// Whether `cfg` may be stored: what the controller accepts ([`validate_settings`], and the
+/// board constants fit together), nothing else.
 pub fn validate(cfg: &ControllerConfig) -> Result<(), StorageError> {
-    let p = &cfg.preload;
-    let dac = &cfg.dac;
-    let ok = (1..=1_000_000).contains(&cfg.encoder_nm_per_count)
-        && p.newton_per_word.is_finite()
-        && p.newton_per_word != 0.0
-        && p.newton_per_word.abs() <= 10.0
-        && p.min_valid_word < p.max_valid_word
-        && in_range(p.filter_alpha, 1e-4, 1.0)
-        && in_range(cfg.preload_min_n, 0.0, 1000.0)
-        && in_range(cfg.preload_max_n, cfg.preload_min_n, 1000.0)
-        && cfg.preload_max_n > cfg.preload_min_n
-        && in_range(cfg.max_drive_v, 0.0, dac.max_v - dac.min_v)
-        && cfg.max_drive_v > 0.0
-        && in_range(cfg.following_error_limit_nm, 1.0, 1e9)
-        && in_range(cfg.stall_time_s, 1e-3, 10.0)
-        && (1..=i32::from(i16::MAX)).contains(&cfg.encoder_jump_counts)
-        && cfg.travel_min_nm < cfg.travel_max_nm
-        && (0..=1_000_000_000).contains(&cfg.on_target_window_nm)
-        && in_range(cfg.settle_time_s, 0.0, 10.0)
-        && in_range(cfg.drive_freq_hz, dac.min_freq_hz, dac.max_freq_hz)
-        && in_range(cfg.speed_fraction, 1e-3, 1.0)
-        && in_range(cfg.accel_fraction, 1e-3, 1.0)
-        && in_range(cfg.kp_per_s, 0.0, 1e4)
-        && in_range(cfg.ki_n_per_nm_s, 0.0, 1.0)
-        && in_range(cfg.fb_kp_v_per_nm, 0.0, 1e3)
-        && in_range(cfg.fb_ki_v_per_nm_s, 0.0, 1e6)
-        && in_range(cfg.expected_load_n, -1000.0, 1000.0)
-        && in_range(cfg.profile_wait_lag_nm, 1.0, 1e9)
-        && in_range(cfg.approach_speed_nm_s, 0.0, 1e9)
-        && in_range(cfg.fine_window_nm, 0.0, 1e6)
-        && in_range(cfg.fine_gain, 0.0, 1.0);
-    if ok && Controller::new(*cfg).is_ok() {
+    if validate_settings(cfg).is_ok() && Controller::new(*cfg).is_ok() {
         Ok(())
     } else {
         Err(StorageError::OutOfRange)
     }
 }
 
-/// Reads a record from the start of `bytes` (extra bytes after it are ignored, so a whole flash
-/// page can be passed). Fields not in the record come from `defaults`.
+/// Reads a record (this [`VERSION`] or version 1) from the start of `bytes` (extra bytes after
+/// it are ignored, so a whole flash page can be passed). Settings not in the record come from
+/// `defaults`.
 pub fn decode(bytes: &[u8], defaults: &ControllerConfig) -> Result<ControllerConfig, StorageError> {
     let mut r = Reader { bytes, pos: 0 };
     let magic = r.u32()?;
@@ -212,51 +275,36 @@ pub fn decode(bytes: &[u8], defaults: &ControllerConfig) -> Result<ControllerCon
         return Err(StorageError::NoRecord);
     }
     let version = r.u16()?;
-    if version != VERSION {
-        return Err(StorageError::WrongVersion(version));
-    }
+    let payload_len = match version {
+        VERSION => PAYLOAD_LEN,
+        1 => V1_PAYLOAD_LEN,
+        _ => return Err(StorageError::WrongVersion(version)),
+    };
     let len = r.u16()?;
-    if usize::from(len) != PAYLOAD_LEN {
+    if usize::from(len) != payload_len {
         return Err(StorageError::WrongLength(len));
     }
-    let body = bytes.get(..HEADER_LEN + PAYLOAD_LEN).ok_or(StorageError::TooShort)?;
-    let stored_crc = {
-        let mut c = Reader { bytes, pos: HEADER_LEN + PAYLOAD_LEN };
-        c.u32()?
-    };
+    let body = bytes.get(..HEADER_LEN + payload_len).ok_or(StorageError::TooShort)?;
+    let stored_crc = Reader { bytes, pos: HEADER_LEN + payload_len }.u32()?;
     if crc32(body) != stored_crc {
         return Err(StorageError::BadCrc);
     }
     let mut cfg = *defaults;
-    cfg.encoder_nm_per_count = r.u32()?;
-    cfg.preload.zero_word = r.u16()?;
-    cfg.preload.newton_per_word = r.f32()?;
-    cfg.preload.min_valid_word = r.u16()?;
-    cfg.preload.max_valid_word = r.u16()?;
-    cfg.preload.filter_alpha = r.f32()?;
-    cfg.preload_min_n = r.f32()?;
-    cfg.preload_max_n = r.f32()?;
-    cfg.max_drive_v = r.f32()?;
-    cfg.following_error_limit_nm = r.f32()?;
-    cfg.stall_time_s = r.f32()?;
-    cfg.encoder_jump_counts = r.i32()?;
-    cfg.travel_min_nm = r.i64()?;
-    cfg.travel_max_nm = r.i64()?;
-    cfg.on_target_window_nm = r.i64()?;
-    cfg.settle_time_s = r.f32()?;
-    cfg.drive_freq_hz = r.f32()?;
-    cfg.speed_fraction = r.f32()?;
-    cfg.accel_fraction = r.f32()?;
-    cfg.kp_per_s = r.f32()?;
-    cfg.ki_n_per_nm_s = r.f32()?;
-    cfg.feedforward = r.bool()?;
-    cfg.fb_kp_v_per_nm = r.f32()?;
-    cfg.fb_ki_v_per_nm_s = r.f32()?;
-    cfg.expected_load_n = r.f32()?;
-    cfg.profile_wait_lag_nm = r.f32()?;
-    cfg.approach_speed_nm_s = r.f32()?;
-    cfg.fine_window_nm = r.f32()?;
-    cfg.fine_gain = r.f32()?;
+    if version == VERSION {
+        for s in SETTINGS.iter().filter(|s| s.stored) {
+            r.setting(s, &mut cfg)?;
+        }
+    } else {
+        for field in V1_FIELDS {
+            match field {
+                Old::Setting(id) => {
+                    let s = SETTINGS.iter().find(|s| s.id == id).ok_or(StorageError::OutOfRange)?;
+                    r.setting(s, &mut cfg)?;
+                }
+                Old::Skip(n) => r.skip(n)?,
+            }
+        }
+    }
     validate(&cfg)?;
     Ok(cfg)
 }

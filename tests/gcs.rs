@@ -783,3 +783,62 @@ fn wpa_only_with_the_servo_off_and_nothing_moving() {
     ]);
     assert!(rig.board.stored.is_some());
 }
+
+/// Issue 15: the fine-mode gain (0x100C) was settable and stored but the controller never read
+/// it: it is gone (unknown parameter, not listed).
+#[test]
+fn fine_mode_gain_is_not_a_parameter() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"SPA 1 0x100C 0.5\n", b""),
+        (b"ERR?\n", b"54\n"),
+        (b"SPA? 1 0x100C\n", b""),
+        (b"ERR?\n", b"54\n"),
+    ]);
+    let hpa = String::from_utf8(rig.send(b"HPA?\n")).unwrap();
+    assert!(!hpa.contains("0x100C=") && !hpa.contains("Fine-mode gain"), "{hpa}");
+    let spa = String::from_utf8(rig.send(b"SPA?\n")).unwrap();
+    assert!(!spa.contains("0x100C="), "{spa}");
+}
+
+/// Issue 15: `SPA` took an encoder jump limit up to i32::MAX that `WPA` then could not store
+/// (the record allowed i16::MAX). The 16-bit counter's change per period never exceeds
+/// i16::MAX, so that is the limit for both.
+#[test]
+fn encoder_jump_limit_is_at_most_what_a_16_bit_counter_can_show() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"SPA 1 0x100E 32767\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"SPA? 1 0x100E\n", b"1 0x100E=32767\n"),
+        (b"WPA\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"SPA 1 0x100E 32768\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"SPA 1 0x100E 2147483647\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"SPA? 1 0x100E\n", b"1 0x100E=32767\n"),
+    ]);
+    let stored = rig.board.stored.expect("stored");
+    assert_eq!(piezo_drive::storage::validate(&stored), Ok(()));
+}
+
+/// Whatever `SPA`, `VEL`, `ACC` and `DEC` accept, the board's record can store: one validator.
+#[test]
+fn every_accepted_setting_can_be_stored() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"SPA 1 0x1 34000000 1 0x2 5 1 0x8 2000 1 0x1008 -5000 1 0x100D 60 1 0x3F 20\n", b""),
+        (b"VEL 1 100000\n", b""),
+        (b"ACC 1 1e9\n", b""),
+        (b"DEC 1 1e-6\n", b""),
+        (b"SPA 1 0x1016 1 1 0x1017 -1000 1 0x1018 0.001 1 0x1019 1e6\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"WPA\n", b""),
+        (b"ERR?\n", b"0\n"),
+    ]);
+    let stored = rig.board.stored.expect("stored");
+    assert_eq!(&stored, rig.ctl.config());
+    let record = piezo_drive::storage::encode(&stored);
+    assert_eq!(piezo_drive::storage::decode(&record, &defaults::controller_config()), Ok(stored));
+}

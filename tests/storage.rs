@@ -84,11 +84,11 @@ fn out_of_range_values_are_rejected_even_with_a_good_crc() {
     let d = controller_config();
     let cases: [fn(&mut piezo_drive::controller::ControllerConfig); 7] = [
         |c| c.kp_per_s = f32::NAN,
-        |c| c.fine_gain = 2.0,
+        |c| c.speed_fraction = 2.0,
         |c| c.drive_freq_hz = 10_000.0,
         |c| c.preload_max_n = c.preload_min_n,
         |c| c.travel_max_nm = c.travel_min_nm,
-        |c| c.encoder_nm_per_count = 0,
+        |c| c.preload.min_valid_word = c.preload.max_valid_word,
         |c| c.max_drive_v = 500.0,
     ];
     for (i, f) in cases.iter().enumerate() {
@@ -98,9 +98,15 @@ fn out_of_range_values_are_rejected_even_with_a_good_crc() {
         let rec = storage::encode(&c);
         assert_eq!(storage::decode(&rec, &d), Err(StorageError::OutOfRange), "case {i}");
     }
+    // The encoder resolution is the hardware's (read-only): out of range it is refused (so WPA
+    // refuses it), but the record does not hold it, so it decodes to the build's value.
+    let mut c = d;
+    c.encoder_nm_per_count = 0;
+    assert_eq!(storage::validate(&c), Err(StorageError::OutOfRange));
+    assert_eq!(storage::decode(&storage::encode(&c), &d), Ok(d));
     // A non-0/1 bool byte is refused.
     let mut rec = storage::encode(&d);
-    let ff = RECORD_LEN - 4 - 7 * 4 - 1;
+    let ff = storage::offset_of(0x1005).unwrap();
     assert_eq!(rec[ff], 1);
     rec[ff] = 2;
     let crc = storage::crc32(&rec[..RECORD_LEN - 4]);
@@ -138,11 +144,277 @@ proptest! {
         let d = controller_config();
         let mut c = d;
         c.kp_per_s = kp;
-        c.fine_gain = gain;
+        c.fb_kp_v_per_nm = gain;
         c.drive_freq_hz = f;
         c.travel_min_nm = lo;
         c.travel_max_nm = hi;
         c.preload.zero_word = zero;
         prop_assert_eq!(storage::decode(&storage::encode(&c), &d), Ok(c));
     }
+}
+
+/// A configuration with every stored setting away from its default (valid together).
+fn changed() -> piezo_drive::controller::ControllerConfig {
+    use piezo_drive::controller::ReferenceSignal;
+    let mut c = controller_config();
+    c.kp_per_s = 55.5;
+    c.ki_n_per_nm_s = 0.002;
+    c.following_error_limit_nm = 40_000.0;
+    c.velocity_max_nm_s = 1.5e6;
+    c.accel_max_nm_s2 = 5e8;
+    c.decel_max_nm_s2 = 2.5e8;
+    c.travel_max_nm = 20_000_000;
+    c.travel_min_nm = -3_500_000;
+    c.on_target_window_nm = 100;
+    c.settle_time_s = 0.02;
+    c.drive_freq_hz = 1500.0;
+    c.max_drive_v = 90.0;
+    c.speed_fraction = 0.5;
+    c.accel_fraction = 0.6;
+    c.feedforward = false;
+    c.fb_kp_v_per_nm = 0.004;
+    c.fb_ki_v_per_nm_s = 0.3;
+    c.expected_load_n = -1.25;
+    c.profile_wait_lag_nm = 3000.0;
+    c.approach_speed_nm_s = 250_000.0;
+    c.fine_window_nm = 500.0;
+    c.stall_time_s = 0.08;
+    c.encoder_jump_counts = 300;
+    c.preload_min_n = 4.0;
+    c.preload_max_n = 20.0;
+    c.preload.zero_word = 7;
+    c.preload.newton_per_word = 0.0125;
+    c.preload.min_valid_word = 3;
+    c.preload.max_valid_word = 4000;
+    c.preload.filter_alpha = 0.05;
+    c.reference_signal = ReferenceSignal::NegativeLimit;
+    c.reference_position_nm = -1_000_000;
+    c.reference_drive_v = 40.0;
+    c.reference_timeout_s = 100.0;
+    c
+}
+
+/// Issue 15: `WPA` on the board kept neither `VEL`/`ACC`/`DEC` nor the referencing settings
+/// (the record had no fields for them; decoding gave the defaults back).
+#[test]
+fn motion_limits_and_referencing_settings_are_stored() {
+    use piezo_drive::controller::ReferenceSignal;
+    let d = controller_config();
+    let mut c = d;
+    c.velocity_max_nm_s = 1.5e6;
+    c.accel_max_nm_s2 = 5e8;
+    c.decel_max_nm_s2 = 2.5e8;
+    c.reference_signal = ReferenceSignal::NegativeLimit;
+    c.reference_position_nm = -1_000_000;
+    c.reference_drive_v = 40.0;
+    c.reference_timeout_s = 100.0;
+    let back = storage::decode(&storage::encode(&c), &d).unwrap();
+    assert_eq!(back.velocity_max_nm_s, 1.5e6);
+    assert_eq!(back.accel_max_nm_s2, 5e8);
+    assert_eq!(back.decel_max_nm_s2, 2.5e8);
+    assert_eq!(back.reference_signal, ReferenceSignal::NegativeLimit);
+    assert_eq!(back.reference_position_nm, -1_000_000);
+    assert_eq!(back.reference_drive_v, 40.0);
+    assert_eq!(back.reference_timeout_s, 100.0);
+    assert_eq!(back, c);
+    // Every setting at once.
+    assert_eq!(storage::decode(&storage::encode(&changed()), &d), Ok(changed()));
+}
+
+/// Issue 15: the record's validator allowed an encoder jump limit up to i16::MAX, the
+/// protocol's up to i32::MAX. The 16-bit counter's change per period is an i16, so a larger
+/// limit could never trip: one limit, everywhere.
+#[test]
+fn encoder_jump_limit_is_the_same_for_the_controller_and_the_record() {
+    use piezo_drive::controller::{validate_settings, Controller};
+    let d = controller_config();
+    for (jump, ok) in [(0, false), (1, true), (32_767, true), (32_768, false), (i32::MAX, false)] {
+        let c = piezo_drive::controller::ControllerConfig { encoder_jump_counts: jump, ..d };
+        assert_eq!(validate_settings(&c).is_ok(), ok, "{jump}");
+        assert_eq!(Controller::new(c).is_ok(), ok, "{jump}");
+        assert_eq!(storage::validate(&c).is_ok(), ok, "{jump}");
+    }
+}
+
+#[test]
+fn what_the_controller_accepts_the_record_stores() {
+    // Values far from the defaults that the controller takes (SPA accepts them): WPA must not
+    // refuse them (it did for a gain above 1e4, a load beyond 1000 N, a stall time over 10 s).
+    let d = controller_config();
+    let cases: [fn(&mut piezo_drive::controller::ControllerConfig); 6] = [
+        |c| c.kp_per_s = 3.4e7,
+        |c| c.ki_n_per_nm_s = 2.0,
+        |c| c.expected_load_n = -5000.0,
+        |c| c.stall_time_s = 60.0,
+        |c| c.settle_time_s = 20.0,
+        |c| c.preload.filter_alpha = 1e-5,
+    ];
+    for (i, f) in cases.iter().enumerate() {
+        let mut c = d;
+        f(&mut c);
+        assert!(piezo_drive::controller::Controller::new(c).is_ok(), "case {i}");
+        assert_eq!(storage::decode(&storage::encode(&c), &d), Ok(c), "case {i}");
+    }
+}
+
+/// Little-endian bytes of the values, in the order given.
+enum V {
+    F(f32),
+    I(i64),
+    I32(i32),
+    U32(u32),
+    W(u16),
+    B(u8),
+}
+
+fn record(version: u16, values: &[V]) -> Vec<u8> {
+    let mut payload = Vec::new();
+    for v in values {
+        match v {
+            V::F(x) => payload.extend_from_slice(&x.to_le_bytes()),
+            V::I(x) => payload.extend_from_slice(&x.to_le_bytes()),
+            V::I32(x) => payload.extend_from_slice(&x.to_le_bytes()),
+            V::U32(x) => payload.extend_from_slice(&x.to_le_bytes()),
+            V::W(x) => payload.extend_from_slice(&x.to_le_bytes()),
+            V::B(x) => payload.push(*x),
+        }
+    }
+    let mut rec = b"PZDP".to_vec();
+    rec.extend_from_slice(&version.to_le_bytes());
+    rec.extend_from_slice(&(payload.len() as u16).to_le_bytes());
+    rec.extend_from_slice(&payload);
+    let crc = storage::crc32(&rec);
+    rec.extend_from_slice(&crc.to_le_bytes());
+    rec
+}
+
+/// The version-2 layout, written out by hand: every stored setting in id order, in its
+/// type's width. A change here is a new format version.
+#[test]
+fn version_2_record_byte_for_byte() {
+    use V::*;
+    let expected = record(
+        2,
+        &[
+            F(55.5),       // 0x1 kp
+            F(0.002),      // 0x2 ki
+            F(40_000.0),   // 0x8 following error (nm)
+            F(1.5e6),      // 0xA VEL (nm/s)
+            F(5e8),        // 0xB ACC
+            F(2.5e8),      // 0xC DEC
+            I(20_000_000), // 0x15 travel max (nm)
+            I(-3_500_000), // 0x30 travel min
+            I(100),        // 0x36 settling window
+            F(0.02),       // 0x3F settling time
+            F(1500.0),     // 0x1001 drive frequency
+            F(90.0),       // 0x1002 maximum drive
+            F(0.5),        // 0x1003 speed share
+            F(0.6),        // 0x1004 thrust share
+            B(0),          // 0x1005 feedforward
+            F(0.004),      // 0x1006 plain kp
+            F(0.3),        // 0x1007 plain ki
+            F(-1.25),      // 0x1008 expected load
+            F(3000.0),     // 0x1009 profile wait lag
+            F(250_000.0),  // 0x100A approach speed
+            F(500.0),      // 0x100B fine window
+            F(0.08),       // 0x100D stall time
+            I32(300),      // 0x100E encoder jump
+            F(4.0),        // 0x100F preload min
+            F(20.0),       // 0x1010 preload max
+            W(7),          // 0x1011 zero word
+            F(0.0125),     // 0x1012 N per word
+            W(3),          // 0x1013 lowest valid word
+            W(4000),       // 0x1014 highest valid word
+            F(0.05),       // 0x1015 filter
+            B(1),          // 0x1016 reference signal: negative limit
+            I(-1_000_000), // 0x1017 reference position
+            F(40.0),       // 0x1018 reference drive
+            F(100.0),      // 0x1019 reference timeout
+        ],
+    );
+    assert_eq!(VERSION, 2);
+    assert_eq!(PAYLOAD_LEN, 140);
+    assert_eq!(RECORD_LEN, 152);
+    assert_eq!(storage::encode(&changed()).to_vec(), expected);
+    assert_eq!(storage::decode(&expected, &controller_config()), Ok(changed()));
+}
+
+/// A record written by the firmware before the settings table (version 1, 119 payload bytes)
+/// still loads; what it did not hold comes from the defaults, the fine-mode gain it held is
+/// gone.
+#[test]
+fn version_1_record_still_loads() {
+    use V::*;
+    let v1 = record(
+        1,
+        &[
+            U32(50),       // encoder resolution (read-only)
+            W(7),          // zero word
+            F(0.0125),     // N per word
+            W(3),          // lowest valid word
+            W(4000),       // highest valid word
+            F(0.05),       // filter
+            F(4.0),        // preload min
+            F(20.0),       // preload max
+            F(90.0),       // maximum drive
+            F(40_000.0),   // following error (nm)
+            F(0.08),       // stall time
+            I32(300),      // encoder jump
+            I(-3_500_000), // travel min (nm)
+            I(20_000_000), // travel max
+            I(100),        // settling window
+            F(0.02),       // settling time
+            F(1500.0),     // drive frequency
+            F(0.5),        // speed share
+            F(0.6),        // thrust share
+            F(55.5),       // kp
+            F(0.002),      // ki
+            B(0),          // feedforward
+            F(0.004),      // plain kp
+            F(0.3),        // plain ki
+            F(-1.25),      // expected load
+            F(3000.0),     // profile wait lag
+            F(250_000.0),  // approach speed
+            F(500.0),      // fine window
+            F(0.5),        // fine-mode gain (no longer a setting)
+        ],
+    );
+    assert_eq!(v1.len(), 8 + 119 + 4);
+    let d = controller_config();
+    let mut expected = changed();
+    // Not in version 1: from the defaults.
+    expected.velocity_max_nm_s = d.velocity_max_nm_s;
+    expected.accel_max_nm_s2 = d.accel_max_nm_s2;
+    expected.decel_max_nm_s2 = d.decel_max_nm_s2;
+    expected.reference_signal = d.reference_signal;
+    expected.reference_position_nm = d.reference_position_nm;
+    expected.reference_drive_v = d.reference_drive_v;
+    expected.reference_timeout_s = d.reference_timeout_s;
+    assert_eq!(storage::decode(&v1, &d), Ok(expected));
+    // As read from a flash page (erased bytes after it).
+    let mut page = vec![0xFFu8; 2048];
+    page[..v1.len()].copy_from_slice(&v1);
+    assert_eq!(storage::decode(&page, &d), Ok(expected));
+    // Its checks still hold: a flipped bit, a wrong length.
+    let mut bad = v1.clone();
+    bad[20] ^= 4;
+    assert_eq!(storage::decode(&bad, &d), Err(StorageError::BadCrc));
+    let short = record(1, &[F(1.0)]);
+    assert_eq!(storage::decode(&short, &d), Err(StorageError::WrongLength(4)));
+}
+
+#[test]
+fn every_setting_is_stored_unless_read_only_and_every_default_comes_from_somewhere() {
+    use piezo_drive::defaults::{with_defaults, Unset, REFERENCE_BOARD};
+    use piezo_drive::settings::SETTINGS;
+    for s in SETTINGS {
+        assert_eq!(s.stored, !s.read_only, "{}", s.name);
+        assert_eq!(storage::offset_of(s.id).is_some(), s.stored, "{}", s.name);
+    }
+    // Every field of the defaults is set by the table or the hardware, whatever it held before.
+    let a = with_defaults(&REFERENCE_BOARD, Unset::Zero);
+    let b = with_defaults(&REFERENCE_BOARD, Unset::Odd);
+    assert_eq!(a, b);
+    assert_eq!(a, controller_config());
+    assert!(piezo_drive::controller::Controller::new(a).is_ok());
 }

@@ -11,6 +11,7 @@ use crate::params::Params;
 use crate::steady::{OperatingPoint, ThrustModel};
 use crate::{curve, gap, measured_csv, moves, plot, trace};
 use anyhow::{bail, Context, Result};
+use piezo_drive::settings::{DefaultValue, Keep, Range, Setting, Ty, Value, SETTINGS};
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -142,6 +143,75 @@ fn gap_table(r: &gap::GapReport) -> String {
     t
 }
 
+/// A value in the protocol's unit, as the README prints it.
+fn gcs_text(s: &Setting, v: Value) -> String {
+    match (s.ty, v) {
+        (Ty::I64Nm, Value::Int(nm)) => {
+            let sign = if nm < 0 { "-" } else { "" };
+            let (mm, frac) = (nm.unsigned_abs() / 1_000_000, nm.unsigned_abs() % 1_000_000);
+            let frac = format!("{frac:06}");
+            match frac.trim_end_matches('0') {
+                "" => format!("{sign}{mm}"),
+                f => format!("{sign}{mm}.{f}"),
+            }
+        }
+        (_, Value::Int(x)) => format!("{x}"),
+        (_, Value::F32(x)) => format!("{}", x / s.scale),
+    }
+}
+
+/// A setting's range in the protocol's unit.
+fn range_text(s: &Setting) -> String {
+    match s.range {
+        Range::Float { lo, hi, lo_open } => {
+            let lo_text = gcs_text(s, Value::F32(lo));
+            let hi_text = gcs_text(s, Value::F32(hi));
+            match (lo == -f32::MAX, hi == f32::MAX, lo_open) {
+                (true, true, _) => "any".into(),
+                (false, true, true) => format!("> {lo_text}"),
+                (false, true, false) => format!("≥ {lo_text}"),
+                (_, _, true) => format!("> {lo_text}, ≤ {hi_text}"),
+                (_, _, false) => format!("{lo_text} … {hi_text}"),
+            }
+        }
+        Range::Int { lo, hi } => {
+            format!("{} … {}", gcs_text(s, Value::Int(lo)), gcs_text(s, Value::Int(hi)))
+        }
+    }
+}
+
+/// The parameters, from the core's settings table ([`piezo_drive::settings::SETTINGS`]).
+pub fn parameters_table() -> String {
+    let defaults = piezo_drive::defaults::controller_config();
+    let mut t = String::from(
+        "| id | setting | unit | range | default | kept | description |\n|---|---|---|---|---|---|---|\n",
+    );
+    for s in SETTINGS {
+        let value = gcs_text(s, (s.get)(&defaults));
+        let default = match s.default {
+            DefaultValue::Fixed(_) => value,
+            DefaultValue::Hardware(what) => format!("{what} (reference board: {value})"),
+        };
+        let kept = match s.keep {
+            Keep::Stored => "`WPA`",
+            Keep::Volatile => "no",
+            Keep::ReadOnly => "read-only",
+        };
+        let _ = writeln!(
+            t,
+            "| 0x{:X} | `{}` | {} | {} | {} | {} | {} |",
+            s.id,
+            s.name,
+            s.unit,
+            range_text(s),
+            default,
+            kept,
+            s.description
+        );
+    }
+    t
+}
+
 /// Everything, written to `docs` (figures) and returned (tables).
 fn generate(root: &Path, docs: &Path) -> Result<Vec<Table>> {
     let proto = Params::prototype();
@@ -186,6 +256,7 @@ fn generate(root: &Path, docs: &Path) -> Result<Vec<Table>> {
         Table { name: "moves", text: moves_table(&proto)? },
         Table { name: "paper-masses-speeds", text: paper_masses_table(&paper_masses) },
         Table { name: "gap-example", text: gap_table(&report) },
+        Table { name: "parameters", text: parameters_table() },
     ])
 }
 

@@ -7,11 +7,12 @@ use crate::params::Params;
 use crate::sil::{controller_config, Sil};
 use anyhow::{bail, Context, Result};
 use piezo_drive::controller::ControllerConfig;
-use piezo_drive::gcs::{params::PARAMS, Board, Gcs, LoopStats, Pending, Reply};
+use piezo_drive::gcs::{Board, Gcs, LoopStats, Pending, Reply};
+use piezo_drive::storage;
 use std::fmt::Write as _;
 use std::io::{ErrorKind, Read, Write};
 use std::net::{TcpListener, TcpStream};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 #[derive(clap::Args, Debug, Clone)]
@@ -35,7 +36,8 @@ pub struct ServeArgs {
     /// Limit switches this far beyond the index on either side (mm).
     #[arg(long, default_value_t = 55.0, allow_negative_numbers = true)]
     pub limit_mm: f64,
-    /// File for `WPA` (parameters as `SPA` lines, replayed at start-up); in memory when absent.
+    /// File for `WPA`: the board's flash parameter record, byte for byte, loaded at start-up;
+    /// in memory when absent.
     #[arg(long, value_name = "FILE")]
     pub store: Option<PathBuf>,
     /// Stop after this many seconds (for tests); runs until killed when absent.
@@ -46,50 +48,23 @@ pub struct ServeArgs {
 /// The simulated board's side of the protocol.
 pub struct SimBoard {
     store: Option<PathBuf>,
-    /// Last `WPA` content when there is no file.
-    pub stored: Option<String>,
+    /// Last `WPA` record when there is no file.
+    pub stored: Option<Vec<u8>>,
     pub stats: LoopStats,
 }
 
-/// `SPA` lines for every writable parameter: the stored form of a configuration.
-pub fn parameter_lines(cfg: &ControllerConfig) -> String {
-    let mut gcs = Gcs::new();
-    let mut ctl = match piezo_drive::controller::Controller::new(*cfg) {
-        Ok(c) => c,
-        Err(_) => return String::new(),
-    };
-    let mut reply = Reply::new();
-    let mut board = SimBoard { store: None, stored: None, stats: LoopStats::default() };
-    for b in b"SPA?\n" {
-        if let Some(p) = gcs.push_byte(*b) {
-            gcs.execute(&p, &mut ctl, &mut board, &mut reply);
-        }
-    }
-    let text = String::from_utf8_lossy(&reply).into_owned();
-    let mut s = String::new();
-    for line in text.lines() {
-        // "1 0x1=40" → "SPA 1 0x1 40", writable parameters only.
-        let line = line.trim_end();
-        let Some((head, value)) = line.split_once('=') else { continue };
-        let Some(id) = head.split_whitespace().nth(1) else { continue };
-        let writable = u32::from_str_radix(id.trim_start_matches("0x"), 16)
-            .ok()
-            .and_then(|id| PARAMS.iter().find(|p| p.id == id))
-            .is_some_and(|p| !p.read_only);
-        if writable {
-            let _ = writeln!(s, "SPA 1 {id} {value}");
-        }
-    }
-    s
-}
-
 impl Board for SimBoard {
+    /// As the board's flash task: the core's record ([`storage::encode`]) of a configuration
+    /// the core accepts, byte for byte, into the `--store` file (or memory).
     fn store_parameters(&mut self, cfg: &ControllerConfig) -> bool {
-        let text = parameter_lines(cfg);
+        if storage::validate(cfg).is_err() {
+            return false;
+        }
+        let record = storage::encode(cfg);
         match &self.store {
-            Some(path) => std::fs::write(path, text).is_ok(),
+            Some(path) => std::fs::write(path, record).is_ok(),
             None => {
-                self.stored = Some(text);
+                self.stored = Some(record.to_vec());
                 true
             }
         }
@@ -100,6 +75,21 @@ impl Board for SimBoard {
     fn loop_stats(&self) -> LoopStats {
         self.stats
     }
+}
+
+/// The configuration the board boots with: the record in `store` decoded over the defaults,
+/// as the firmware loads its flash page; the defaults when there is no file yet.
+pub fn boot_config(p: &Params, store: Option<&Path>) -> Result<ControllerConfig> {
+    let defaults = controller_config(p);
+    let Some(path) = store.filter(|path| path.exists()) else { return Ok(defaults) };
+    let bytes = std::fs::read(path).with_context(|| format!("reading {}", path.display()))?;
+    storage::decode(&bytes, &defaults).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: not a parameter record this controller loads ({e:?}); `WPA` writes one, \
+             remove the file to start from the defaults",
+            path.display()
+        )
+    })
 }
 
 /// Printable form of protocol bytes for the log.
@@ -161,7 +151,9 @@ impl VirtualController {
         if let Some(store) = &args.store {
             crate::check::output_file("--store", store)?;
         }
-        let mut sil = Sil::new(p, controller_config(p), args.preload_n, 1)?;
+        // Parameters stored by an earlier WPA, loaded as the firmware loads them from flash.
+        let cfg = boot_config(p, args.store.as_deref())?;
+        let mut sil = Sil::new(p, cfg, args.preload_n, 1)?;
         let index_m = args.index_um * 1e-6;
         sil.index_position_m = Some(index_m);
         sil.limits_m = Some((index_m - args.limit_mm * 1e-3, index_m + args.limit_mm * 1e-3));
@@ -173,23 +165,8 @@ impl VirtualController {
             start: Instant::now(),
             sim_start_s: 0.0,
         };
-        vc.board.stats.core_clock_hz = 1_000_000_000; // "cycles" are nanoseconds on the host
-                                                      // Parameters stored by an earlier WPA, replayed as the firmware loads them from flash.
-        if let Some(path) = &args.store {
-            if path.exists() {
-                let text =
-                    std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-                let mut sink = Reply::new();
-                vc.feed(text.as_bytes(), &mut sink);
-                if vc.gcs.latched_error() != 0 {
-                    bail!(
-                        "{}: stored parameters rejected (GCS error {})",
-                        path.display(),
-                        vc.gcs.latched_error()
-                    );
-                }
-            }
-        }
+        // "Cycles" are nanoseconds on the host.
+        vc.board.stats.core_clock_hz = 1_000_000_000;
         // Settle the force-cell filter before anyone talks to us.
         vc.sil.run_until(0.05, |_| false);
         vc.sim_start_s = vc.sil.time_s();
@@ -434,7 +411,7 @@ pub fn run(p: &Params, args: &ServeArgs) -> Result<()> {
 mod tests {
     use super::*;
     use piezo_drive::controller::State;
-    use piezo_drive::gcs::REPLY_CAPACITY;
+    use piezo_drive::gcs::{params::PARAMS, REPLY_CAPACITY};
 
     fn args() -> ServeArgs {
         ServeArgs {
@@ -590,9 +567,9 @@ mod tests {
     }
 
     #[test]
-    fn wpa_stores_spa_lines_that_load_back() {
+    fn wpa_stores_the_boards_record_and_a_restart_loads_it() {
         let p = Params::prototype();
-        let path = std::env::temp_dir().join(format!("host-sim-wpa-{}.txt", std::process::id()));
+        let path = std::env::temp_dir().join(format!("host-sim-wpa-{}.bin", std::process::id()));
         let _ = std::fs::remove_file(&path);
         let a = ServeArgs { store: Some(path.clone()), ..args() };
         let mut vc = VirtualController::new(&p, &a).unwrap();
@@ -600,13 +577,36 @@ mod tests {
         // writing the flash stalls the CPU.
         assert_eq!(send(&mut vc, "SVO 1 1\nWPA 100\nERR?\n"), "34\n");
         assert!(vc.board.stored.is_none() && !path.exists());
-        assert_eq!(send(&mut vc, "SVO 1 0\nVEL 1 1.5\nSPA 1 0x15 20\nWPA 100\nERR?\n"), "0\n");
-        let text = std::fs::read_to_string(&path).unwrap();
-        assert!(text.contains("SPA 1 0xA 1.5\n") && text.contains("SPA 1 0x15 20.000000\n"), "{text}");
+        assert_eq!(send(&mut vc, "SVO 1 0\nVEL 1 1.5\nSPA 1 0x15 20 1 0x1019 100\nWPA 100\nERR?\n"), "0\n");
+        // The file is the record the board writes to its flash page, byte for byte.
+        let record = std::fs::read(&path).unwrap();
+        let mut expected = controller_config(&p);
+        expected.velocity_max_nm_s = 1.5e6;
+        expected.travel_max_nm = 20_000_000;
+        expected.reference_timeout_s = 100.0;
+        assert_eq!(record, storage::encode(&expected).to_vec());
         // A new virtual controller starts with them, as the board does from flash.
         let mut again = VirtualController::new(&p, &a).unwrap();
-        assert_eq!(send(&mut again, "VEL?\nTMX?\nERR?\n"), "1=1.5\n1=20.000000\n0\n");
+        assert_eq!(again.sil.controller.config(), &expected);
+        assert_eq!(
+            send(&mut again, "VEL?\nTMX?\nSPA? 1 0x1019\nERR?\n"),
+            "1=1.5\n1=20.000000\n1 0x1019=100\n0\n"
+        );
+        // A file that is not a record is refused with the reason.
+        std::fs::write(&path, "SPA 1 0xA 1.5\n").unwrap();
+        let e = VirtualController::new(&p, &a).err().expect("a text file is not a record").to_string();
+        assert!(e.contains("not a parameter record"), "{e}");
         let _ = std::fs::remove_file(&path);
+    }
+
+    #[test]
+    fn wpa_without_a_file_keeps_the_record_in_memory() {
+        let p = Params::prototype();
+        let mut vc = VirtualController::new(&p, &args()).unwrap();
+        assert_eq!(send(&mut vc, "SPA 1 0x1 55\nWPA\nERR?\n"), "0\n");
+        let stored = vc.board.stored.clone().expect("stored");
+        assert_eq!(stored, storage::encode(vc.sil.controller.config()).to_vec());
+        assert_eq!(storage::decode(&stored, &controller_config(&p)).unwrap().kp_per_s, 55.0);
     }
 
     /// A link that delivers one chunk, collects what is written, then reports the client gone.

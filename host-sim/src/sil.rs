@@ -6,6 +6,7 @@ use crate::params::Params;
 use crate::plant::{ExternalLoad, Plant};
 use crate::steady::amplitudes;
 use piezo_drive::controller::{Controller, ControllerConfig, Inputs, Outputs, DAC_SAMPLES_PER_STEP};
+use piezo_drive::generator::DacConfig;
 use piezo_drive::model::{MotorConstants, FREQ_POINTS};
 use piezo_drive::{defaults, Fx};
 use rand::rngs::StdRng;
@@ -70,26 +71,32 @@ pub fn motor_table_source(p: &Params, source_name: &str) -> String {
     s
 }
 
-/// Controller settings for the simulated board: the firmware's defaults
-/// ([`piezo_drive::defaults::controller_config`]) with the motor, DAC, force cell and preload
-/// window taken from the parameter file.
-pub fn controller_config(p: &Params) -> ControllerConfig {
-    let motor = motor_constants(p);
-    let mut cfg = defaults::controller_config();
-    let max_drive_v = (p.amplifier.output_max_v - p.amplifier.output_min_v) as f32;
-    cfg.loop_hz = (p.amplifier.dac_rate_hz / DAC_SAMPLES_PER_STEP as f64).round() as u32;
-    cfg.dac.full_scale_v = p.amplifier.output_max_v as f32;
-    cfg.dac.min_v = p.amplifier.output_min_v as f32;
-    cfg.dac.max_v = p.amplifier.output_max_v as f32;
-    cfg.dac.sample_rate_hz = p.amplifier.dac_rate_hz as u32;
-    cfg.motor = motor;
-    cfg.encoder_nm_per_count = (p.sensors.encoder_resolution_m * 1e9).round() as u32;
+/// The simulated board's hardware, from the parameter file: the reference board
+/// ([`defaults::REFERENCE_BOARD`]) with the amplifier range, DAC rate, motor, encoder and force
+/// cell of the file.
+pub fn hardware(p: &Params) -> defaults::Hardware {
+    let board = defaults::REFERENCE_BOARD;
     let full_scale_word = (1u32 << p.sensors.force_cell_adc_bits) - 1;
-    cfg.preload.newton_per_word = (p.sensors.force_cell_full_scale_n / f64::from(full_scale_word)) as f32;
-    cfg.preload.max_valid_word = full_scale_word.min(u32::from(u16::MAX)) as u16;
-    cfg.max_drive_v = max_drive_v;
-    cfg.preload_max_n = defaults::full_contact_preload_n(&cfg);
-    cfg
+    defaults::Hardware {
+        loop_hz: (p.amplifier.dac_rate_hz / DAC_SAMPLES_PER_STEP as f64).round() as u32,
+        dac: DacConfig {
+            full_scale_v: p.amplifier.output_max_v as f32,
+            min_v: p.amplifier.output_min_v as f32,
+            max_v: p.amplifier.output_max_v as f32,
+            sample_rate_hz: p.amplifier.dac_rate_hz as u32,
+            ..board.dac
+        },
+        motor: motor_constants(p),
+        encoder_nm_per_count: (p.sensors.encoder_resolution_m * 1e9).round() as u32,
+        force_cell_newton_per_word: (p.sensors.force_cell_full_scale_n / f64::from(full_scale_word)) as f32,
+        force_cell_max_word: full_scale_word.min(u32::from(u16::MAX)) as u16,
+    }
+}
+
+/// Controller settings for the simulated board: the firmware's defaults for its
+/// [`hardware`] ([`piezo_drive::defaults::controller_config_for`]).
+pub fn controller_config(p: &Params) -> ControllerConfig {
+    defaults::controller_config_for(&hardware(p))
 }
 
 /// Controller + plant, advanced one control period at a time.

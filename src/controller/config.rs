@@ -1,4 +1,5 @@
-//! The controller's settings: what the board, the motor table and the user set.
+//! The controller's settings: what the board, the motor table and the user set. Each setting's
+//! id, unit, range, default and storage are declared once, in [`crate::settings::SETTINGS`].
 
 use super::{CommandError, ReferenceSignal};
 use crate::generator::DacConfig;
@@ -40,8 +41,6 @@ pub struct ControllerConfig {
     pub approach_speed_nm_s: f32,
     /// Hand-off to the static fine mode within this distance of the target (nm).
     pub fine_window_nm: f32,
-    /// Fraction of the position error the fine loop corrects per period.
-    pub fine_gain: f32,
     /// On-target window and settle time (as PI's ONT?).
     pub on_target_window_nm: i64,
     pub settle_time_s: f32,
@@ -63,62 +62,25 @@ pub struct ControllerConfig {
     pub reference_timeout_s: f32,
 }
 
-fn finite_positive(x: f32) -> bool {
-    x.is_finite() && x > 0.0
-}
-fn finite_non_negative(x: f32) -> bool {
-    x.is_finite() && x >= 0.0
-}
-fn fraction(x: f32) -> bool {
-    x.is_finite() && x > 0.0 && x <= 1.0
-}
-
 /// Largest travel limit either way (1 m): positions stay far from i64 and f32 trouble.
 pub const MAX_TRAVEL_NM: i64 = 1_000_000_000;
 
-/// Checks the settings a user may change for values the controller can work with.
+/// Checks the settings for values the controller can work with: each setting within its range
+/// (declared in [`crate::settings::SETTINGS`]), and the rules that tie settings to each other or
+/// to the hardware. The one validator: `SPA`, `VEL`/`ACC`/`DEC`, [`super::Controller::new`] and
+/// the flash record ([`crate::storage`]) all use it.
 pub fn validate_settings(c: &ControllerConfig) -> Result<(), CommandError> {
     let d = &c.dac;
-    let range_v = d.max_v - d.min_v;
     let p = &c.preload;
-    let ok = finite_positive(c.drive_freq_hz)
+    let ok = crate::settings::each_in_range(c)
         && c.drive_freq_hz >= d.min_freq_hz
         && c.drive_freq_hz <= d.max_freq_hz
-        && finite_positive(c.max_drive_v)
-        && c.max_drive_v <= range_v
-        && finite_non_negative(c.preload_min_n)
-        && c.preload_max_n.is_finite()
-        && c.preload_min_n < c.preload_max_n
-        && fraction(c.speed_fraction)
-        && fraction(c.accel_fraction)
-        && finite_non_negative(c.kp_per_s)
-        && finite_non_negative(c.ki_n_per_nm_s)
-        && finite_non_negative(c.fb_kp_v_per_nm)
-        && finite_non_negative(c.fb_ki_v_per_nm_s)
-        && c.expected_load_n.is_finite()
-        && finite_positive(c.profile_wait_lag_nm)
-        && finite_positive(c.approach_speed_nm_s)
-        && finite_non_negative(c.fine_window_nm)
-        && fraction(c.fine_gain)
-        && c.on_target_window_nm >= 0
-        && finite_non_negative(c.settle_time_s)
-        && finite_positive(c.following_error_limit_nm)
-        && finite_positive(c.stall_time_s)
-        && c.encoder_jump_counts > 0
-        && c.travel_min_nm < c.travel_max_nm
-        && c.travel_min_nm >= -MAX_TRAVEL_NM
-        && c.travel_max_nm <= MAX_TRAVEL_NM
-        && c.reference_position_nm.abs() <= MAX_TRAVEL_NM
-        && finite_positive(c.velocity_max_nm_s)
-        && finite_positive(c.accel_max_nm_s2)
-        && finite_positive(c.decel_max_nm_s2)
-        && finite_positive(c.reference_drive_v)
+        && c.max_drive_v <= d.max_v - d.min_v
         && c.reference_drive_v <= c.max_drive_v
-        && finite_positive(c.reference_timeout_s)
-        && p.newton_per_word.is_finite()
+        && c.preload_min_n < c.preload_max_n
+        && c.travel_min_nm < c.travel_max_nm
         && p.newton_per_word != 0.0
-        && p.min_valid_word < p.max_valid_word
-        && fraction(p.filter_alpha);
+        && p.min_valid_word < p.max_valid_word;
     if ok {
         Ok(())
     } else {

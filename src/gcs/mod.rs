@@ -13,8 +13,7 @@ pub mod params;
 
 use crate::controller::{validate_settings, CommandError, Controller, ControllerConfig, FaultCode, State};
 use num::{
-    parse_decimal, parse_int, write_f32, write_fixed, write_general, write_i64, write_scaled, write_u64,
-    Decimal,
+    parse_decimal, parse_int, write_fixed, write_general, write_i64, write_scaled, write_u64, Decimal,
 };
 
 pub const REPLY_CAPACITY: usize = 4096;
@@ -532,6 +531,11 @@ impl Gcs {
                     out.s(p.group);
                     out.s("\t");
                     out.s(p.description);
+                    if !p.unit.is_empty() {
+                        out.s(" (");
+                        out.s(p.unit);
+                        out.s(")");
+                    }
                 }
                 out.line();
                 out.s("end of help");
@@ -799,12 +803,7 @@ impl Gcs {
             if p.read_only {
                 return Err(error::READ_ONLY_PARAMETER);
             }
-            let x = match p.kind {
-                params::Kind::Int => v.integer().ok_or(error::PARAM_OUT_OF_RANGE)? as f64,
-                params::Kind::Float | params::Kind::Millimetre => {
-                    v.to_f64().ok_or(error::PARAM_OUT_OF_RANGE)?
-                }
-            };
+            let x = params::from_gcs(p, &v).ok_or(error::PARAM_OUT_OF_RANGE)?;
             if !(p.set)(&mut cfg, x) {
                 return Err(error::PARAM_OUT_OF_RANGE);
             }
@@ -859,17 +858,5 @@ fn param_line(out: &mut Out, p: &params::Param, cfg: &ControllerConfig) {
     out.s("1 0x");
     hex(out, p.id);
     out.s("=");
-    let v = (p.get)(cfg);
-    match p.kind {
-        params::Kind::Int => out.fixed(v, 0),
-        params::Kind::Float => {
-            write_f32(out, v as f32);
-        }
-        params::Kind::Millimetre => {
-            // Whole nanometres within ±1 m: mm·1e6 rounds back to the exact count.
-            let x = v * 1e6;
-            let nm = if x >= 0.0 { x + 0.5 } else { x - 0.5 };
-            out.mm(nm as i64);
-        }
-    }
+    params::write_gcs(out, p, (p.get)(cfg));
 }

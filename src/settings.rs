@@ -1,0 +1,434 @@
+//! Every controller setting, declared once: [`SETTINGS`], one row per setting with its GCS id,
+//! its [`ControllerConfig`] field (the name), GCS unit, type, range, default, whether `WPA`
+//! stores it, whether `SPA` may set it, and its description. Everything else is derived from
+//! this table:
+//!
+//! - `SPA`/`SPA?`/`HPA?` ([`crate::gcs`], through [`crate::gcs::params`]): the rows in table
+//!   order, `HPA?` text `description (unit)`;
+//! - the range check ([`crate::controller::validate_settings`]: each row's [`Range`], plus the
+//!   few rules that tie two settings together);
+//! - the flash record ([`crate::storage`]): the stored rows in table order, each in its type's
+//!   width;
+//! - the defaults ([`crate::defaults`]): each row's fixed default, or the hardware's value.
+//!
+//! The struct [`ControllerConfig`] is where the controller reads the values; a setting is a
+//! field there and a row here, nothing else.
+//!
+//! Adding, removing or reordering a stored row, or changing its type, changes the flash record:
+//! bump [`crate::storage::VERSION`] and keep a decoder for the previous layout (see `storage`).
+
+use crate::controller::{ControllerConfig, ReferenceSignal, MAX_TRAVEL_NM};
+use crate::defaults::DRIVE_FREQ_HZ;
+
+/// A setting's value in its field's own type, widened: f32 fields as `F32`, every integer field
+/// (u16, u32, i32, i64, bool as 0/1, an enum as its code) as `Int`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Value {
+    F32(f32),
+    Int(i64),
+}
+
+/// The field's type: its width in the flash record and how the protocol shows it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Ty {
+    F32,
+    /// A length in whole nanometres; the protocol shows it in mm with six decimals.
+    I64Nm,
+    U32,
+    I32,
+    U16,
+    /// A bool (0/1) or an enum's code.
+    U8,
+}
+
+impl Ty {
+    /// Bytes in the flash record (little-endian).
+    pub const fn size(self) -> usize {
+        match self {
+            Ty::F32 | Ty::U32 | Ty::I32 => 4,
+            Ty::I64Nm => 8,
+            Ty::U16 => 2,
+            Ty::U8 => 1,
+        }
+    }
+}
+
+/// How `SPA?` prints a value and `HPA?` names its type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    Int,
+    /// An f32 setting: `SPA?` prints as many significant digits as it takes to read back the
+    /// same f32 (nine at most).
+    Float,
+    /// A length in mm kept as whole nanometres: `SPA?` prints six decimals, as `TMX?` does.
+    Millimetre,
+}
+
+impl Kind {
+    pub const fn of(ty: Ty) -> Kind {
+        match ty {
+            Ty::F32 => Kind::Float,
+            Ty::I64Nm => Kind::Millimetre,
+            Ty::U32 | Ty::I32 | Ty::U16 | Ty::U8 => Kind::Int,
+        }
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Int => "INT",
+            Kind::Float | Kind::Millimetre => "FLOAT",
+        }
+    }
+}
+
+/// Allowed values, in the field's own unit (the unit its name ends in).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Range {
+    /// Finite, `lo ≤ x ≤ hi` (`lo < x` when `lo_open`).
+    Float { lo: f32, hi: f32, lo_open: bool },
+    /// `lo ≤ x ≤ hi`.
+    Int { lo: i64, hi: i64 },
+}
+
+impl Range {
+    #[inline(always)]
+    pub fn contains(&self, v: Value) -> bool {
+        match (*self, v) {
+            (Range::Float { lo, hi, lo_open }, Value::F32(x)) => {
+                x.is_finite() && (if lo_open { x > lo } else { x >= lo }) && x <= hi
+            }
+            (Range::Int { lo, hi }, Value::Int(x)) => x >= lo && x <= hi,
+            _ => false,
+        }
+    }
+}
+
+/// Any finite value.
+pub const ANY: Range = Range::Float { lo: -f32::MAX, hi: f32::MAX, lo_open: false };
+/// Finite and ≥ 0.
+pub const NON_NEGATIVE: Range = Range::Float { lo: 0.0, hi: f32::MAX, lo_open: false };
+/// Finite and > 0.
+pub const POSITIVE: Range = Range::Float { lo: 0.0, hi: f32::MAX, lo_open: true };
+/// A share: 0 < x ≤ 1.
+pub const FRACTION: Range = Range::Float { lo: 0.0, hi: 1.0, lo_open: true };
+/// A position within the travel bound, ±[`MAX_TRAVEL_NM`].
+pub const TRAVEL: Range = Range::Int { lo: -MAX_TRAVEL_NM, hi: MAX_TRAVEL_NM };
+/// 0 or 1 (a bool, a two-way choice).
+pub const FLAG: Range = Range::Int { lo: 0, hi: 1 };
+/// Any u16.
+pub const WORD: Range = Range::Int { lo: 0, hi: u16::MAX as i64 };
+
+/// Where a setting's default comes from.
+#[derive(Clone, Copy)]
+pub enum DefaultValue {
+    /// The same on every board: sets the field to it.
+    Fixed(fn(&mut ControllerConfig)),
+    /// From the hardware the firmware is built for ([`crate::defaults::Hardware`]); what it is.
+    Hardware(&'static str),
+}
+
+/// Whether `WPA` keeps a setting and `SPA` may change it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Keep {
+    /// Settable; `WPA` stores it in the flash record.
+    Stored,
+    /// Settable; lost at reset.
+    Volatile,
+    /// A fact of the hardware: `SPA` refuses it, the record does not hold it (the build's value
+    /// counts).
+    ReadOnly,
+}
+
+/// One setting's declaration (a row of [`SETTINGS`]).
+pub struct Setting {
+    /// GCS parameter id (`SPA 1 <id> <value>`).
+    pub id: u32,
+    /// The [`ControllerConfig`] field, e.g. `preload.zero_word`.
+    pub name: &'static str,
+    /// Function group for `HPA?`.
+    pub group: &'static str,
+    /// What it is, for `HPA?` (no `=`, no tab; the unit follows in parentheses).
+    pub description: &'static str,
+    /// Unit of the value in the protocol (`SPA`/`SPA?`); empty for a pure number.
+    pub unit: &'static str,
+    /// Field units per protocol unit (1e6 for a `_nm` field set in mm); f32 fields only (an
+    /// `I64Nm` field is always nm ↔ mm).
+    pub scale: f32,
+    pub ty: Ty,
+    pub kind: Kind,
+    /// Allowed values in the field's unit.
+    pub range: Range,
+    pub default: DefaultValue,
+    pub keep: Keep,
+    pub stored: bool,
+    pub read_only: bool,
+    /// The field's value.
+    pub get: fn(&ControllerConfig) -> Value,
+    /// Sets the field; false (nothing changed) when the value does not fit its type (range
+    /// checks are [`crate::controller::validate_settings`]'s).
+    pub set: fn(&mut ControllerConfig, Value) -> bool,
+}
+
+/// A field type a setting may have.
+pub trait Field: Sized {
+    const TY: Ty;
+    fn to_value(self) -> Value;
+    /// None when `v` is not of this type or does not fit.
+    fn from_value(v: Value) -> Option<Self>;
+    /// Whether the value is in `range` (inlined with a constant range, a compare or two).
+    #[inline(always)]
+    fn within(self, range: &Range) -> bool {
+        range.contains(self.to_value())
+    }
+}
+
+impl Field for f32 {
+    const TY: Ty = Ty::F32;
+    #[inline(always)]
+    fn to_value(self) -> Value {
+        Value::F32(self)
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::F32(x) => Some(x),
+            Value::Int(_) => None,
+        }
+    }
+}
+
+macro_rules! int_field {
+    ($t:ty, $ty:expr) => {
+        impl Field for $t {
+            const TY: Ty = $ty;
+            #[inline(always)]
+            fn to_value(self) -> Value {
+                Value::Int(i64::from(self))
+            }
+            fn from_value(v: Value) -> Option<Self> {
+                match v {
+                    Value::Int(x) => <$t>::try_from(x).ok(),
+                    Value::F32(_) => None,
+                }
+            }
+        }
+    };
+}
+int_field!(i64, Ty::I64Nm);
+int_field!(u32, Ty::U32);
+int_field!(i32, Ty::I32);
+int_field!(u16, Ty::U16);
+
+impl Field for bool {
+    const TY: Ty = Ty::U8;
+    #[inline(always)]
+    fn to_value(self) -> Value {
+        Value::Int(i64::from(self))
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::Int(0) => Some(false),
+            Value::Int(1) => Some(true),
+            _ => None,
+        }
+    }
+}
+
+impl Field for ReferenceSignal {
+    const TY: Ty = Ty::U8;
+    #[inline(always)]
+    fn to_value(self) -> Value {
+        Value::Int(match self {
+            ReferenceSignal::Index => 0,
+            ReferenceSignal::NegativeLimit => 1,
+        })
+    }
+    fn from_value(v: Value) -> Option<Self> {
+        match v {
+            Value::Int(0) => Some(ReferenceSignal::Index),
+            Value::Int(1) => Some(ReferenceSignal::NegativeLimit),
+            _ => None,
+        }
+    }
+}
+
+/// One row: `id, group, field: type = default; unit, scale, range, keep, description`; the
+/// default is a value of the field's type or `hardware("where it comes from")`. `@check c;` and
+/// a row: whether `c`'s field is in the row's range.
+macro_rules! setting {
+    (@check $c:ident; $id:literal, $group:literal, $($f:ident).+ : $t:ty = hardware($what:literal);
+     $unit:literal, $scale:literal, $range:expr, $($rest:tt)*) => {
+        Field::within($c.$($f).+, &$range)
+    };
+    (@check $c:ident; $id:literal, $group:literal, $($f:ident).+ : $t:ty = $default:expr;
+     $unit:literal, $scale:literal, $range:expr, $($rest:tt)*) => {
+        Field::within($c.$($f).+, &$range)
+    };
+    ($id:literal, $group:literal, $($f:ident).+ : $t:ty = hardware($what:literal); $($rest:tt)*) => {
+        setting!(@row $id, $group, $($f).+ : $t, DefaultValue::Hardware($what); $($rest)*)
+    };
+    ($id:literal, $group:literal, $($f:ident).+ : $t:ty = $default:expr; $($rest:tt)*) => {
+        setting!(@row $id, $group, $($f).+ : $t,
+            DefaultValue::Fixed(|c: &mut ControllerConfig| c.$($f).+ = $default); $($rest)*)
+    };
+    (@row $id:literal, $group:literal, $($f:ident).+ : $t:ty, $default:expr;
+     $unit:literal, $scale:literal, $range:expr, $keep:ident, $desc:literal) => {
+        Setting {
+            id: $id,
+            name: stringify!($($f).+),
+            group: $group,
+            description: $desc,
+            unit: $unit,
+            scale: $scale,
+            ty: <$t as Field>::TY,
+            kind: Kind::of(<$t as Field>::TY),
+            range: $range,
+            default: $default,
+            keep: Keep::$keep,
+            stored: matches!(Keep::$keep, Keep::Stored),
+            read_only: matches!(Keep::$keep, Keep::ReadOnly),
+            get: |c: &ControllerConfig| Field::to_value(c.$($f).+),
+            set: |c: &mut ControllerConfig, v: Value| match <$t as Field>::from_value(v) {
+                Some(x) => {
+                    c.$($f).+ = x;
+                    true
+                }
+                None => false,
+            },
+        }
+    };
+}
+
+/// The table and the range check, from the rows (each in parentheses): the check is straight
+/// code, field by field, as cheap as one written by hand (it runs in `Controller::set_config`,
+/// which the board calls with the control tick held off).
+macro_rules! settings {
+    ($(#[$doc:meta])* pub static $name:ident; $(($($row:tt)*)),* $(,)?) => {
+        $(#[$doc])*
+        pub static $name: &[Setting] = &[$(setting!($($row)*)),*];
+
+        /// Whether every setting of `c` is within its own range (the rules between settings
+        /// are [`crate::controller::validate_settings`]'s).
+        pub fn each_in_range(c: &ControllerConfig) -> bool {
+            true $(&& setting!(@check c; $($row)*))*
+        }
+    };
+}
+
+settings! {
+    /// The settings, in `SPA?`/`HPA?` order (by id). IDs 0x1–0x3F follow PI's numbering where PI
+    /// has the same meaning; 0x1001 and up are ours. Ranges are in the field's unit (its name's
+    /// suffix); the unit column is the protocol's.
+    pub static SETTINGS;
+
+    // id, group, field: type = default; GCS unit, field units per GCS unit (f32 fields; an i64 nm
+    // field is always shown in mm), range in the field's unit, keep, description
+    (0x1, "Servo", kp_per_s: f32 = 40.0;
+        "1/s", 1.0, NON_NEGATIVE, Stored, "Position feedback gain"),
+    (0x2, "Servo", ki_n_per_nm_s: f32 = 1e-3;
+        "N per nm*s", 1.0, NON_NEGATIVE, Stored, "Load integrator gain"),
+    (0x8, "Servo", following_error_limit_nm: f32 = 50_000.0;
+        "mm", 1e6, POSITIVE, Stored, "Maximum position error"),
+    // VEL/ACC/DEC: high enough that the thrust model's limits govern unless a user lowers them.
+    (0xA, "Motion", velocity_max_nm_s: f32 = 10_000_000.0;
+        "mm/s", 1e6, POSITIVE, Stored, "Maximum closed-loop velocity"),
+    (0xB, "Motion", accel_max_nm_s2: f32 = 1e9;
+        "mm/s^2", 1e6, POSITIVE, Stored, "Closed-loop acceleration"),
+    (0xC, "Motion", decel_max_nm_s2: f32 = 1e9;
+        "mm/s^2", 1e6, POSITIVE, Stored, "Closed-loop deceleration"),
+    (0x15, "Motion", travel_max_nm: i64 = 50_000_000;
+        "mm", 1.0, TRAVEL, Stored, "Maximum travel in positive direction"),
+    (0x30, "Motion", travel_min_nm: i64 = -50_000_000;
+        "mm", 1.0, TRAVEL, Stored, "Maximum travel in negative direction"),
+    (0x36, "Servo", on_target_window_nm: i64 = 50;
+        "mm", 1.0, Range::Int { lo: 0, hi: MAX_TRAVEL_NM }, Stored, "Settling window"),
+    (0x3F, "Servo", settle_time_s: f32 = 0.01;
+        "s", 1.0, NON_NEGATIVE, Stored, "Settling time"),
+    // The top of the band gives the highest speed; the DAC's band is checked too.
+    (0x1001, "Drive", drive_freq_hz: f32 = DRIVE_FREQ_HZ;
+        "Hz", 1.0, POSITIVE, Stored, "Drive frequency of coarse motion"),
+    (0x1002, "Drive", max_drive_v: f32 = hardware("the amplifier's output range");
+        "V peak-to-peak", 1.0, POSITIVE, Stored, "Maximum drive amplitude"),
+    (0x1003, "Motion", speed_fraction: f32 = 0.92;
+        "", 1.0, FRACTION, Stored, "Share of the model no-load speed the profile uses"),
+    (0x1004, "Motion", accel_fraction: f32 = 0.8;
+        "", 1.0, FRACTION, Stored, "Share of the model thrust the profile uses"),
+    (0x1005, "Servo", feedforward: bool = true;
+        "", 1.0, FLAG, Stored, "Thrust-model feedforward (1 on, 0 plain PI feedback)"),
+    // Plain PI (feedforward off): full drive at 20 µm of error, integral time 10 ms.
+    (0x1006, "Servo", fb_kp_v_per_nm: f32 = 100.0 / 20_000.0;
+        "V per nm", 1.0, NON_NEGATIVE, Stored, "Plain-feedback proportional gain"),
+    (0x1007, "Servo", fb_ki_v_per_nm_s: f32 = 100.0 / 20_000.0 / 0.01;
+        "V per nm*s", 1.0, NON_NEGATIVE, Stored, "Plain-feedback integral gain"),
+    (0x1008, "Servo", expected_load_n: f32 = 0.0;
+        "N", 1.0, ANY, Stored, "Expected load along +x"),
+    (0x1009, "Motion", profile_wait_lag_nm: f32 = 2_000.0;
+        "mm", 1e6, POSITIVE, Stored, "Lag at which the profile waits for the slider"),
+    (0x100A, "Motion", approach_speed_nm_s: f32 = 200_000.0;
+        "mm/s", 1e6, POSITIVE, Stored, "Least final approach speed"),
+    (0x100B, "Servo", fine_window_nm: f32 = 300.0;
+        "mm", 1e6, NON_NEGATIVE, Stored, "Fine-mode window"),
+    (0x100D, "Supervision", stall_time_s: f32 = 0.05;
+        "s", 1.0, POSITIVE, Stored, "Stall detection time"),
+    // The 16-bit encoder counter is unwrapped by its change per period, taken as an i16: a
+    // larger limit could never trip.
+    (0x100E, "Supervision", encoder_jump_counts: i32 = 200;
+        "counts per period", 1.0, Range::Int { lo: 1, hi: i16::MAX as i64 }, Stored,
+        "Encoder jump limit"),
+    // Below about 3 N contact is unreliable (physics.md §2).
+    (0x100F, "Preload", preload_min_n: f32 = 3.0;
+        "N", 1.0, NON_NEGATIVE, Stored, "Preload window minimum"),
+    (0x1010, "Preload", preload_max_n: f32 =
+        hardware("the highest preload at which full drive still lifts the foot off, physics.md §2");
+        "N", 1.0, NON_NEGATIVE, Stored, "Preload window maximum"),
+    (0x1011, "Preload", preload.zero_word: u16 = 0;
+        "", 1.0, WORD, Stored, "Force cell zero word"),
+    (0x1012, "Preload", preload.newton_per_word: f32 =
+        hardware("the force cell's full scale over its full-scale word");
+        "N per word", 1.0, ANY, Stored, "Force cell scale"),
+    (0x1013, "Preload", preload.min_valid_word: u16 = 0;
+        "", 1.0, WORD, Stored, "Force cell lowest valid word"),
+    (0x1014, "Preload", preload.max_valid_word: u16 = hardware("the force cell's full-scale word");
+        "", 1.0, WORD, Stored, "Force cell highest valid word"),
+    (0x1015, "Preload", preload.filter_alpha: f32 = 0.01;
+        "", 1.0, FRACTION, Stored, "Force cell filter coefficient per period"),
+    (0x1016, "Referencing", reference_signal: ReferenceSignal = ReferenceSignal::Index;
+        "", 1.0, FLAG, Stored, "Reference signal (0 encoder index, 1 negative limit switch)"),
+    (0x1017, "Referencing", reference_position_nm: i64 = 0;
+        "mm", 1.0, TRAVEL, Stored, "Position given to the reference mark"),
+    (0x1018, "Referencing", reference_drive_v: f32 = 50.0;
+        "V", 1.0, POSITIVE, Stored, "Drive amplitude of the reference search"),
+    (0x1019, "Referencing", reference_timeout_s: f32 = 200.0;
+        "s", 1.0, POSITIVE, Stored, "Reference search timeout"),
+    (0x1020, "Hardware", encoder_nm_per_count: u32 = hardware("the encoder's resolution");
+        "nm per count", 1.0, Range::Int { lo: 1, hi: 1_000_000 }, ReadOnly, "Encoder resolution"),
+    (0x1021, "Hardware", loop_hz: u32 = hardware("the DAC rate over 20 samples per period");
+        "Hz", 1.0, Range::Int { lo: 1, hi: u32::MAX as i64 }, ReadOnly, "Control loop rate"),
+}
+
+/// The setting with this GCS id.
+pub fn find(id: i64) -> Option<&'static Setting> {
+    SETTINGS.iter().find(|s| i64::from(s.id) == id)
+}
+
+/// Sets every setting with a fixed default to it (the hardware's are the caller's).
+pub fn apply_fixed_defaults(c: &mut ControllerConfig) {
+    for s in SETTINGS {
+        if let DefaultValue::Fixed(apply) = s.default {
+            apply(c);
+        }
+    }
+}
+
+const fn ids_ascending() -> bool {
+    let mut rest = SETTINGS;
+    while let [a, b, ..] = rest {
+        if a.id >= b.id {
+            return false;
+        }
+        if let [_, tail @ ..] = rest {
+            rest = tail;
+        }
+    }
+    true
+}
+// The table is in id order (SPA?/HPA? list it so, find() relies on no duplicates).
+const _: () = assert!(ids_ascending());
