@@ -20,7 +20,52 @@ fn perturbed(truth: &Params) -> Params {
 
 fn run(truth: &Params, grid: &Grid, noise_pct: f64, seed: u64) -> GapReport {
     let rows = synthesize(truth, grid, noise_pct, seed, &|| {});
-    analyze(&perturbed(truth), &rows, &Options::default(), &|_, _, _| {}).expect("workflow runs")
+    let r = analyze(&perturbed(truth), &rows, &Options::default(), &|_, _, _| {}).expect("workflow runs");
+    signature_line(&r);
+    r
+}
+
+/// One line per run: what is named, what is partial, and the final residual structure along each
+/// condition (χ²/dof against the noise) next to the signature test's limit.
+fn signature_line(r: &GapReport) {
+    let after: Vec<String> = r
+        .residual_structure
+        .iter()
+        .map(|c| format!("{} {:.1}->{:.1}", c.condition, c.chi2_per_dof_before, c.chi2_per_dof_after))
+        .collect();
+    let partial: Vec<String> = r
+        .partial_candidates
+        .iter()
+        .map(|p| {
+            format!(
+                "{} (share {:.2}, R {:.2}->{:.2}, above noise along {:?})",
+                p.effect, p.share_of_excess, p.consistency_without, p.consistency_with, p.unexplained_along
+            )
+        })
+        .collect();
+    let sig: Vec<String> = r
+        .candidates
+        .iter()
+        .filter(|c| c.accepted || c.partial)
+        .map(|c| {
+            let s: Vec<String> = c
+                .structure
+                .iter()
+                .filter(|a| a.signature)
+                .map(|a| format!("{} {:.2}/{:.2}", a.condition, a.chi2_per_dof, a.noise_limit_per_dof))
+                .collect();
+            format!("{} round {}: {}", c.name, c.round, s.join(", "))
+        })
+        .collect();
+    eprintln!(
+        "SIGNATURE named {:?} partial {:?}; R {:.2}->{:.2}; structure {}; candidate refits [{}]",
+        r.named_effects,
+        partial,
+        r.consistency_before,
+        r.consistency_after,
+        after.join(", "),
+        sig.join("; ")
+    );
 }
 
 fn fitted(r: &GapReport, effect: &str, param: &str) -> f64 {
