@@ -158,6 +158,16 @@ pub struct AxisStructure {
     pub signature: bool,
 }
 
+/// The naming decision for one accepted effect: the residual structure of the final joint fit
+/// (all accepted effects together) along every condition, its signature conditions flagged.
+#[derive(Debug, Clone, Serialize)]
+pub struct SignatureTest {
+    pub effect: String,
+    /// Every signature condition consistent with noise: named; otherwise a partial candidate.
+    pub named: bool,
+    pub structure: Vec<AxisStructure>,
+}
+
 /// An effect that explains part of the data but leaves structure above noise along its own
 /// signature: not named, not in the fitted model.
 #[derive(Debug, Clone, Serialize)]
@@ -215,6 +225,8 @@ pub struct GapReport {
     /// Effects accepted by ΔBIC and cross-validation whose fit still leaves structure above noise
     /// along their own signature: they explain part of the gap, not all of it.
     pub partial_candidates: Vec<PartialCandidate>,
+    /// The signature test of every accepted effect, in the final joint fit.
+    pub signature_tests: Vec<SignatureTest>,
     /// The named effects' parameters from the final fit (with one-sigma uncertainties).
     pub final_effects: Vec<FinalEffect>,
     pub candidates: Vec<Candidate>,
@@ -701,12 +713,7 @@ pub fn analyze(
                 }
                 let mut reduced = model.clone();
                 reduced.effects.retain(|x| *x != e);
-                let mut x: Vec<f64> = fit.x[..BASE_PARAMS].to_vec();
-                for r in &reduced.effects {
-                    let off = model.offset(r).unwrap_or(BASE_PARAMS);
-                    x.extend_from_slice(&fit.x[off..off + effect_params(r).len()]);
-                }
-                let f = lm_fit(&reduced, &data, &all, &[x], 60);
+                let f = lm_fit(&reduced, &data, &all, &[sub_x(&model, &fit.x, &reduced)], 60);
                 let k = effect_params(e).len() as f64;
                 let kept = (f.ssr - fit.ssr) / (state.s * state.s) - k * (n as f64).ln();
                 if kept < opts.min_delta_bic {
@@ -723,24 +730,28 @@ pub fn analyze(
         let r = ratio(&fit, n, model.n_params(), s);
         state = State { model, fit, s, ratio: r };
     }
-    // Name only the effects that leave their own signature conditions consistent with noise in
-    // the final fit; the others are partial candidates, taken out of the model (one pass per
-    // demotion: taking one out can expose structure along another's signature).
+    // Name only the effects whose own signature conditions are consistent with noise in the final
+    // fit (all accepted effects together, so structure one of them leaves cannot be blamed on
+    // another); the others are partial candidates and leave the model, which is refitted.
+    let signature_tests: Vec<SignatureTest> = state
+        .model
+        .effects
+        .iter()
+        .map(|e| {
+            let structure = axis_structure(&data, &state.fit.resid, state.s, opts.signature_alpha, signature(e));
+            SignatureTest { effect: e.to_string(), named: clears_signature(&structure), structure }
+        })
+        .collect();
+    let failing: Vec<&'static str> = state
+        .model
+        .effects
+        .iter()
+        .zip(&signature_tests)
+        .filter(|(_, t)| !t.named)
+        .map(|(e, _)| *e)
+        .collect();
     let mut partial_candidates = Vec::new();
-    loop {
-        let failing: Vec<&'static str> = state
-            .model
-            .effects
-            .iter()
-            .copied()
-            .filter(|e| {
-                let st = axis_structure(&data, &state.fit.resid, state.s, opts.signature_alpha, signature(e));
-                !clears_signature(&st)
-            })
-            .collect();
-        if failing.is_empty() {
-            break;
-        }
+    if !failing.is_empty() {
         let full_model = state.model.clone();
         let full_x = state.fit.x.clone();
         let mut named = state.model.clone();
@@ -761,14 +772,11 @@ pub fn analyze(
             let mut above: Vec<&AxisStructure> = structure.iter().filter(|a| !a.consistent_with_noise).collect();
             above.sort_by(|a, b| b.chi2_per_dof.total_cmp(&a.chi2_per_dof));
             let pred = with.predict(&f.x, &data, &all);
-            let round = candidates_out
-                .iter()
-                .rev()
-                .find(|c| c.accepted && c.effect == e)
-                .map_or(0, |c| c.round);
+            let mut round = 0;
             for c in candidates_out.iter_mut().filter(|c| c.accepted && c.effect == e) {
                 c.accepted = false;
                 c.partial = true;
+                round = c.round;
             }
             partial_candidates.push(PartialCandidate {
                 effect: e.to_string(),
@@ -819,6 +827,7 @@ pub fn analyze(
         named_effects: state.model.effects.iter().map(|e| e.to_string()).collect(),
         nothing_missing: state.model.effects.is_empty() && partial_candidates.is_empty(),
         partial_candidates,
+        signature_tests,
         final_effects,
         candidates: candidates_out,
         ambiguity,
