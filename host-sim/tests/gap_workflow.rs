@@ -279,7 +279,13 @@ fn an_unknown_effect_in_the_library_is_an_error() {
 /// −20 dB/decade, no flat part) and a mode that raises the drive (`stator_resonance`); neither
 /// makes a gain that stays flat to 1.5 kHz and then falls steeply. Loads are fractions of the
 /// true (filtered) stall force, as `measure` does for library effects.
-fn synthesize_behind_lc_filter(truth: &Params, grid: &Grid, f0_hz: f64, q: f64, seed: u64) -> Vec<MeasuredRow> {
+fn synthesize_behind_lc_filter(
+    truth: &Params,
+    grid: &Grid,
+    f0_hz: f64,
+    q: f64,
+    seed: u64,
+) -> Vec<MeasuredRow> {
     let gain = |f: f64| {
         let x = f / f0_hz;
         1.0 / ((1.0 - x * x).powi(2) + (x / q).powi(2)).sqrt()
@@ -331,6 +337,11 @@ fn a_drive_chain_outside_the_library_is_a_partial_candidate_not_a_named_effect()
     assert!(freq.chi2_per_dof > freq.noise_limit_per_dof && freq.chi2_per_dof < before.chi2_per_dof_before);
     // Not named, so not in the fitted model: the "after" model is the recalibrated base model.
     assert!(r.final_effects.is_empty());
+    // The report says so, with the share and where the rest lies.
+    let md = host_sim::gap::report::markdown(&r, std::path::Path::new("lc.csv"));
+    assert!(md.contains("No library effect explains the data"), "{md}");
+    let row = format!("| amplifier_rolloff | 1 | {:.0} % |", 100.0 * first.share_of_excess);
+    assert!(md.contains(&row) && md.contains("| partial |"), "{md}");
     assert!((r.gap_after - r.gap_before).abs() < 0.1 * r.gap_before, "{} vs {}", r.gap_after, r.gap_before);
 }
 
@@ -346,13 +357,25 @@ fn an_effect_that_clears_its_own_signature_is_named_beside_a_partial_one() {
     signature_line(&r);
     assert_eq!(r.named_effects, ["assembly_asymmetry"]);
     assert!((fitted(&r, "assembly_asymmetry", "asymmetry_fraction") - 0.1).abs() <= 0.02);
-    assert!(r.partial_candidates.iter().any(|p| p.effect == "amplifier_rolloff"), "{:?}", r.partial_candidates);
+    assert!(
+        r.partial_candidates.iter().any(|p| p.effect == "amplifier_rolloff"),
+        "{:?}",
+        r.partial_candidates
+    );
     // The decision, in the joint fit of both accepted effects: the drive sense is consistent with
     // noise (χ² limit 10.8 for one degree of freedom at α = 0.001), the frequency is not (13.8
     // for two), and the asymmetry is named all the same.
     let test = r.signature_tests.iter().find(|t| t.effect == "assembly_asymmetry").expect("tested");
     assert!(test.named);
     let along = |c: &str| test.structure.iter().find(|a| a.condition == c).unwrap();
-    assert!(along("direction").signature && along("direction").chi2_per_dof < 10.8, "{:?}", along("direction"));
-    assert!(!along("frequency").signature && along("frequency").chi2_per_dof > 13.8 / 2.0, "{:?}", along("frequency"));
+    assert!(
+        along("direction").signature && along("direction").chi2_per_dof < 10.8,
+        "{:?}",
+        along("direction")
+    );
+    assert!(
+        !along("frequency").signature && along("frequency").chi2_per_dof > 13.8 / 2.0,
+        "{:?}",
+        along("frequency")
+    );
 }

@@ -641,7 +641,8 @@ pub fn analyze(
                 let lr = (state.fit.ssr - f.ssr) / (state.s * state.s);
                 let cv_with = cv_rms(&m, &data, &f.x, opts.folds);
                 let pred = m.predict(&f.x, &data, &all);
-                let structure = axis_structure(&data, &f.resid, state.s, opts.signature_alpha, signature(name));
+                let structure =
+                    axis_structure(&data, &f.resid, state.s, opts.signature_alpha, signature(name));
                 let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 progress(&label, d, todo.len());
                 Candidate {
@@ -738,18 +739,13 @@ pub fn analyze(
         .effects
         .iter()
         .map(|e| {
-            let structure = axis_structure(&data, &state.fit.resid, state.s, opts.signature_alpha, signature(e));
+            let structure =
+                axis_structure(&data, &state.fit.resid, state.s, opts.signature_alpha, signature(e));
             SignatureTest { effect: e.to_string(), named: clears_signature(&structure), structure }
         })
         .collect();
-    let failing: Vec<&'static str> = state
-        .model
-        .effects
-        .iter()
-        .zip(&signature_tests)
-        .filter(|(_, t)| !t.named)
-        .map(|(e, _)| *e)
-        .collect();
+    let failing: Vec<&'static str> =
+        state.model.effects.iter().zip(&signature_tests).filter(|(_, t)| !t.named).map(|(e, _)| *e).collect();
     let mut partial_candidates = Vec::new();
     if !failing.is_empty() {
         let full_model = state.model.clone();
@@ -769,7 +765,8 @@ pub fn analyze(
             starts.extend(candidate_starts(&fit.x, e, &data));
             let f = lm_fit(&with, &data, &all, &starts, 60);
             let structure = axis_structure(&data, &f.resid, s, opts.signature_alpha, signature(e));
-            let mut above: Vec<&AxisStructure> = structure.iter().filter(|a| !a.consistent_with_noise).collect();
+            let mut above: Vec<&AxisStructure> =
+                structure.iter().filter(|a| !a.consistent_with_noise).collect();
             above.sort_by(|a, b| b.chi2_per_dof.total_cmp(&a.chi2_per_dof));
             let pred = with.predict(&f.x, &data, &all);
             let mut round = 0;
