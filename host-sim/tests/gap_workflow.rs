@@ -39,9 +39,35 @@ fn signature_line(r: &GapReport) {
         .iter()
         .map(|p| {
             format!(
-                "{} (share {:.2}, R {:.2}->{:.2}, above noise along {:?})",
-                p.effect, p.share_of_excess, p.consistency_without, p.consistency_with, p.unexplained_along
+                "{} (share {:.2}, R {:.2}->{:.2}, gap {:.4}->{:.4}, above noise along {:?})",
+                p.effect,
+                p.share_of_excess,
+                p.consistency_without,
+                p.consistency_with,
+                r.gap_after,
+                p.gap_with,
+                p.unexplained_along
             )
+        })
+        .collect();
+    let tests: Vec<String> = r
+        .signature_tests
+        .iter()
+        .map(|t| {
+            let s: Vec<String> = t
+                .structure
+                .iter()
+                .map(|a| {
+                    format!(
+                        "{}{} {:.2}/{:.2}",
+                        if a.signature { "*" } else { "" },
+                        a.condition,
+                        a.chi2_per_dof,
+                        a.noise_limit_per_dof
+                    )
+                })
+                .collect();
+            format!("{} named {}: {}", t.effect, t.named, s.join(", "))
         })
         .collect();
     let sig: Vec<String> = r
@@ -59,13 +85,14 @@ fn signature_line(r: &GapReport) {
         })
         .collect();
     eprintln!(
-        "SIGNATURE named {:?} partial {:?}; R {:.2}->{:.2}; structure {}; candidate refits [{}]",
+        "SIGNATURE named {:?} partial {:?}; R {:.2}->{:.2}; structure {}; candidate refits [{}]; joint fit [{}]",
         r.named_effects,
         partial,
         r.consistency_before,
         r.consistency_after,
         after.join(", "),
-        sig.join("; ")
+        sig.join("; "),
+        tests.join("; ")
     );
 }
 

@@ -227,6 +227,8 @@ pub struct GapReport {
     pub partial_candidates: Vec<PartialCandidate>,
     /// The signature test of every accepted effect, in the final joint fit.
     pub signature_tests: Vec<SignatureTest>,
+    /// Its significance level ([`Options::signature_alpha`]).
+    pub signature_alpha: f64,
     /// The named effects' parameters from the final fit (with one-sigma uncertainties).
     pub final_effects: Vec<FinalEffect>,
     pub candidates: Vec<Candidate>,
@@ -825,6 +827,7 @@ pub fn analyze(
         nothing_missing: state.model.effects.is_empty() && partial_candidates.is_empty(),
         partial_candidates,
         signature_tests,
+        signature_alpha: opts.signature_alpha,
         final_effects,
         candidates: candidates_out,
         ambiguity,

@@ -264,8 +264,9 @@ fn signature_section(s: &mut String, r: &GapReport) {
         "## Signature test\n\nAn accepted effect is named only when, in the final fit of all accepted \
          effects together, the residual structure (χ²/dof of the level means in noise units) along \
          each condition its law acts on stays below the χ² quantile that noise exceeds with \
-         probability 0.1 % for that condition's levels; structure along other conditions does not \
-         count against it.\n\n| effect | its conditions (χ²/dof, limit) | decision |\n|---|---|---|"
+         probability {} % for that condition's levels − 1 degrees of freedom; structure along other \
+         conditions does not count against it.\n\n| effect | its conditions (χ²/dof, limit) | decision |\n|---|---|---|",
+        100.0 * r.signature_alpha
     );
     for t in &r.signature_tests {
         let sig: Vec<String> = t.structure.iter().filter(|a| a.signature).map(fmt_structure).collect();
