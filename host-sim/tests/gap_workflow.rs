@@ -39,14 +39,19 @@ fn signature_line(r: &GapReport) {
         .iter()
         .map(|p| {
             format!(
-                "{} (share {:.2}, R {:.2}->{:.2}, gap {:.4}->{:.4}, above noise along {:?})",
+                "{} (share {:.2}, R {:.2}->{:.2}, gap {:.4}->{:.4}, above noise along {:?}: {})",
                 p.effect,
                 p.share_of_excess,
                 p.consistency_without,
                 p.consistency_with,
                 r.gap_after,
                 p.gap_with,
-                p.unexplained_along
+                p.unexplained_along,
+                p.structure
+                    .iter()
+                    .map(|a| format!("{} {:.1}/{:.1}", a.condition, a.chi2_per_dof, a.noise_limit_per_dof))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             )
         })
         .collect();
