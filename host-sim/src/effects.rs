@@ -136,6 +136,60 @@ pub const EFFECT_NAMES: [&str; 7] = [
     "hertz_contact",
 ];
 
+/// A condition of a measured operating point; the residual structure along each is what the
+/// model-gap workflow tests against the noise.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Axis {
+    Preload,
+    Voltage,
+    Frequency,
+    /// The load level: a row's rank in load within its measured curve.
+    Load,
+    Direction,
+}
+
+impl Axis {
+    pub const ALL: [Axis; 5] = [Axis::Preload, Axis::Voltage, Axis::Frequency, Axis::Load, Axis::Direction];
+
+    /// Name in reports and JSON.
+    pub fn label(self) -> &'static str {
+        match self {
+            Axis::Preload => "preload",
+            Axis::Voltage => "voltage",
+            Axis::Frequency => "frequency",
+            Axis::Load => "load level",
+            Axis::Direction => "direction",
+        }
+    }
+}
+
+/// An effect's signature: the conditions its law acts on (the variables of the law, mapped to
+/// the measured conditions). The model-gap workflow names an effect only when, after its fit, the
+/// residuals along these conditions are consistent with noise. Every library effect has one (a
+/// test holds this); an unknown name has none.
+pub fn signature(effect: &str) -> &'static [Axis] {
+    use Axis::*;
+    match effect {
+        // −c·sign(v) − b·v: the slider's speed (set by the load) and its sign (the drive sense).
+        "rail_friction" => &[Load, Direction],
+        // Xc·(1 + a·d): the drive sense only.
+        "assembly_asymmetry" => &[Direction],
+        // μ/(1 + s·max(0, F0 − Fk)): the static preload only.
+        "preload_dependent_friction" => &[Preload],
+        // μ(slip), slip = ω·X·cos φ − v: the foot's speed (voltage × frequency) and the slider's
+        // (the load).
+        "stribeck_friction" => &[Voltage, Frequency, Load],
+        // Gain 1/√(1 + (f/fc)²) on the drive: the frequency only.
+        "amplifier_rolloff" => &[Frequency],
+        // Gain |1 + k·(H(jω) − 1)| on the drive: the frequency only.
+        "stator_resonance" => &[Frequency],
+        // kc·(F0/Fref)ⁿ: the static preload only.
+        "hertz_contact" => &[Preload],
+        _ => &[],
+    }
+}
+
 /// The library's own (`'static`) name for `name`; an unknown name is an error that names it and
 /// the known ones, on one line. Every effect name a user gives goes through here.
 pub fn effect_name(name: &str) -> Result<&'static str> {

@@ -114,6 +114,16 @@ fn measure_then_gap_end_to_end() {
         }
     }
     assert!(v["ambiguity"].is_array());
+    // The roll-off leaves its own condition (the frequency) at noise: named, nothing partial.
+    assert_eq!(v["partial_candidates"], serde_json::json!([]));
+    let tests = v["signature_tests"].as_array().unwrap();
+    assert_eq!(tests.len(), 1);
+    assert_eq!(tests[0]["effect"], "amplifier_rolloff");
+    assert_eq!(tests[0]["named"], true);
+    let freq =
+        tests[0]["structure"].as_array().unwrap().iter().find(|a| a["condition"] == "frequency").unwrap();
+    assert_eq!(freq["signature"], true);
+    assert!(freq["chi2_per_dof"].as_f64().unwrap() <= freq["noise_limit_per_dof"].as_f64().unwrap());
     for f in ["report.md", "curves.svg", "residuals.svg", "params-fitted.toml"] {
         assert!(out_dir.join(f).exists(), "{f} not written");
     }
@@ -123,6 +133,7 @@ fn measure_then_gap_end_to_end() {
     assert!(fitted.effects.std_dev.contains_key("rolloff_corner_hz"));
     let md = std::fs::read_to_string(out_dir.join("report.md")).unwrap();
     assert!(md.contains("amplifier_rolloff") && md.contains("curves.svg"));
+    assert!(md.contains("| amplifier_rolloff | frequency ") && md.contains("| named |"), "{md}");
 }
 
 /// `measure --effect` with a name the library does not know: one line naming it and the known

@@ -190,3 +190,58 @@ fn effects_section_round_trips_through_toml_and_rejects_bad_values() {
     let e = Params::from_toml(&text).unwrap_err().to_string();
     assert!(e.contains("unknown field") && !e.contains('\n'), "{e}");
 }
+
+/// Every library effect declares its signature (the conditions its law acts on, which the
+/// model-gap workflow tests for leftover structure), and the law does act along each: the
+/// speed change it makes differs between two levels of every signature condition. The one
+/// exception is the rail's Coulomb law along the drive sense: it is symmetric, so what it claims
+/// there is that the two senses lose the same speed.
+#[test]
+fn every_effect_has_a_signature_and_acts_along_it() {
+    use host_sim::effects::{signature, Axis};
+    assert!(signature("warp_drive").is_empty());
+    for (name, (param, value)) in EFFECT_NAMES.iter().zip(HIDDEN) {
+        let sig = signature(name);
+        assert!(!sig.is_empty(), "{name} has no signature");
+        for (i, a) in sig.iter().enumerate() {
+            assert!(!sig[i + 1..].contains(a), "{name}: {a:?} twice");
+        }
+        let mut base = Params::prototype();
+        if *name == "hertz_contact" {
+            // On the ceramic contact kc hardly matters (eq. 7); a compliant layer shows it.
+            base.contact.stiffness_n_per_m = 2e7;
+        }
+        let mut with = base.clone();
+        with.effects.set(param, value).unwrap();
+        let at = |c: Condition| model_speed_m_s(&with, &c) / model_speed_m_s(&base, &c) - 1.0;
+        // Loads as fractions of the base model's stall force at each drive point (a friction law
+        // leaves the no-load speed alone).
+        let loaded = |c: Condition, fraction: f64| {
+            let stall = EffectModel::new(&base, &c).thrust_n(0.0);
+            Condition { load_n: fraction * stall, ..c }
+        };
+        let mid = cond(11.0, 80.0, 1500.0, 0.0, 1);
+        let at_40 = |c: Condition| loaded(c, 0.4);
+        for &axis in sig {
+            if *name == "rail_friction" && axis == Axis::Direction {
+                let d = Condition { direction: -1, ..mid };
+                assert_eq!(at(at_40(mid)), at(at_40(d)), "rail friction is symmetric");
+                continue;
+            }
+            let (a, b) = match axis {
+                Axis::Preload => (Condition { preload_n: 6.0, ..mid }, Condition { preload_n: 16.0, ..mid }),
+                Axis::Voltage => {
+                    (Condition { voltage_v: 60.0, ..mid }, Condition { voltage_v: 100.0, ..mid })
+                }
+                Axis::Frequency => {
+                    (Condition { frequency_hz: 900.0, ..mid }, Condition { frequency_hz: 2100.0, ..mid })
+                }
+                Axis::Load => (loaded(mid, 0.1), loaded(mid, 0.4)),
+                Axis::Direction => (mid, Condition { direction: -1, ..mid }),
+            };
+            let (a, b) = if axis == Axis::Load { (a, b) } else { (at_40(a), at_40(b)) };
+            let (da, db) = (at(a), at(b));
+            assert!((da - db).abs() > 0.005, "{name} along {axis:?}: {da:.4} vs {db:.4}");
+        }
+    }
+}

@@ -10,12 +10,18 @@
 //!   the current parameters can explain (one-sided where the strength is one-sided);
 //! - likelihood ratio `LR = (SSR₀ − SSR₁)/s²`, `ΔBIC = LR − k·ln n`;
 //! - cross-validation: K folds of held-out operating curves (preload, voltage, frequency,
-//!   direction); improvement = 1 − RMS_cv(with)/RMS_cv(without).
+//!   direction); improvement = 1 − RMS_cv(with)/RMS_cv(without);
+//! - residual structure along a condition: `χ² = Σ_levels n_l·r̄_l²/s²` of the level means `r̄_l`
+//!   of the weighted residuals; pure noise gives χ² with `levels − 1` degrees of freedom (the
+//!   calibrated level absorbs one). An accepted effect is *named* only when, after the final
+//!   fit, this χ² is below its `1 − α` quantile along every condition of the effect's signature
+//!   ([`crate::effects::signature`]); otherwise it is a *partial candidate*.
 
+pub mod chi2;
 pub mod fit;
 pub mod report;
 
-use crate::effects::{effect_name, Condition, EFFECT_NAMES};
+use crate::effects::{effect_name, signature, Axis, Condition, EFFECT_NAMES};
 use crate::measured_csv::MeasuredRow;
 use crate::params::Params;
 use anyhow::{anyhow, bail, Result};
@@ -41,6 +47,11 @@ pub struct Options {
     /// ΔBIC margin within which candidates form an ambiguity group (candidates whose refits both
     /// leave residuals consistent with noise are grouped whatever their ΔBIC).
     pub ambiguity_bic: f64,
+    /// Significance level of the signature test: an accepted effect whose refit leaves residual
+    /// structure along one of its signature conditions that pure noise would exceed with
+    /// probability below `signature_alpha` (χ² quantile for that condition's levels − 1) is a
+    /// partial candidate, not a named effect.
+    pub signature_alpha: f64,
     /// Which effects the library offers (default: all); a name that is not in
     /// [`EFFECT_NAMES`] makes [`analyze`] fail.
     pub library: Vec<&'static str>,
@@ -55,6 +66,9 @@ impl Default for Options {
             min_delta_bic: 10.0,
             min_cv_improvement: 0.15,
             ambiguity_bic: 10.0,
+            // 0.1 % per condition: over the ≤ 3 signature conditions of each of the ≤ 3 accepted
+            // effects, noise alone demotes a correct effect with probability < 1 %.
+            signature_alpha: 1e-3,
             library: EFFECT_NAMES.to_vec(),
         }
     }
@@ -87,7 +101,13 @@ pub struct Candidate {
     pub gap: f64,
     /// Residual variance / noise variance of the refit (below the threshold: explains the data).
     pub consistency: f64,
+    /// Named: accepted in its round and, after the final fit, its signature is clear of structure.
     pub accepted: bool,
+    /// Accepted in its round but left structure above noise along its signature after the final
+    /// fit (see `partial_candidates`).
+    pub partial: bool,
+    /// Residual structure of this refit along every condition (its signature ones flagged).
+    pub structure: Vec<AxisStructure>,
     pub params: Vec<NamedParam>,
     #[serde(skip)]
     pub fit_x: Vec<f64>,
@@ -123,6 +143,54 @@ pub struct FinalEffect {
     pub params: Vec<NamedParam>,
 }
 
+/// Residual structure of one fit along one condition, against the noise.
+#[derive(Debug, Clone, Serialize)]
+pub struct AxisStructure {
+    pub condition: &'static str,
+    pub levels: usize,
+    /// χ² of the level means in noise units, per degree of freedom (levels − 1).
+    pub chi2_per_dof: f64,
+    /// The χ²/dof that pure noise exceeds with probability `signature_alpha`.
+    pub noise_limit_per_dof: f64,
+    /// Below the limit (or a single level: nothing to compare).
+    pub consistent_with_noise: bool,
+    /// In the effect's signature (the conditions its law acts on).
+    pub signature: bool,
+}
+
+/// The naming decision for one accepted effect: the residual structure of the final joint fit
+/// (all accepted effects together) along every condition, its signature conditions flagged.
+#[derive(Debug, Clone, Serialize)]
+pub struct SignatureTest {
+    pub effect: String,
+    /// Every signature condition consistent with noise: named; otherwise a partial candidate.
+    pub named: bool,
+    pub structure: Vec<AxisStructure>,
+}
+
+/// An effect that explains part of the data but leaves structure above noise along its own
+/// signature: not named, not in the fitted model.
+#[derive(Debug, Clone, Serialize)]
+pub struct PartialCandidate {
+    pub effect: String,
+    /// Round in which it was accepted provisionally.
+    pub round: usize,
+    /// Share of the excess over noise, `SSR/s² − (n − p)`, of the model with the named effects
+    /// that adding this effect removes (0–1).
+    pub share_of_excess: f64,
+    /// R of the model with the named effects, and with this effect added.
+    pub consistency_without: f64,
+    pub consistency_with: f64,
+    pub gap_with: f64,
+    /// Its signature conditions whose structure stays above noise.
+    pub unexplained_signature: Vec<&'static str>,
+    /// Every condition whose structure stays above noise with it, most structured first.
+    pub unexplained_along: Vec<&'static str>,
+    /// Structure per condition with the effect fitted.
+    pub structure: Vec<AxisStructure>,
+    pub params: Vec<NamedParam>,
+}
+
 /// Residual structure against one condition: the spread of the mean weighted residual between
 /// the condition's levels, as χ² per degree of freedom in units of the noise (≈ 1: no structure).
 #[derive(Debug, Clone, Serialize)]
@@ -154,6 +222,13 @@ pub struct GapReport {
     pub gap_before: f64,
     pub gap_after: f64,
     pub named_effects: Vec<String>,
+    /// Effects accepted by ΔBIC and cross-validation whose fit still leaves structure above noise
+    /// along their own signature: they explain part of the gap, not all of it.
+    pub partial_candidates: Vec<PartialCandidate>,
+    /// The signature test of every accepted effect, in the final joint fit.
+    pub signature_tests: Vec<SignatureTest>,
+    /// Its significance level ([`Options::signature_alpha`]).
+    pub signature_alpha: f64,
     /// The named effects' parameters from the final fit (with one-sigma uncertainties).
     pub final_effects: Vec<FinalEffect>,
     pub candidates: Vec<Candidate>,
@@ -419,12 +494,10 @@ fn separating_experiment(group: &[&Candidate], model: &Model, data: &Data, s: f6
     best
 }
 
-/// A row's level of one condition.
-type LevelKey<'a> = Box<dyn Fn(usize) -> i64 + 'a>;
-
-/// χ² per degree of freedom of the level means of the weighted residuals, per condition. The load
-/// level is a row's rank in load within its curve (the load fraction of a measured curve).
-fn structure(data: &Data, resid: &[f64], s: f64) -> Vec<(String, usize, f64)> {
+/// χ² (not per dof) of the level means of the weighted residuals and the number of levels, per
+/// condition of [`Axis::ALL`]. The load level is a row's rank in load within its curve (the load
+/// fraction of a measured curve).
+fn structure(data: &Data, resid: &[f64], s: f64) -> Vec<(Axis, usize, f64)> {
     let n = data.len();
     let mut load_rank = vec![0i64; n];
     for c in 0..data.n_curves {
@@ -434,18 +507,22 @@ fn structure(data: &Data, resid: &[f64], s: f64) -> Vec<(String, usize, f64)> {
             load_rank[i] = r as i64;
         }
     }
-    let keys: [(&str, LevelKey); 5] = [
-        ("preload", Box::new(|i| (data.conds[i].preload_n * 1e3).round() as i64)),
-        ("voltage", Box::new(|i| (data.conds[i].voltage_v * 1e3).round() as i64)),
-        ("frequency", Box::new(|i| (data.conds[i].frequency_hz * 1e3).round() as i64)),
-        ("load level", Box::new(|i| load_rank[i])),
-        ("direction", Box::new(|i| i64::from(data.conds[i].direction))),
-    ];
-    keys.iter()
-        .map(|(name, key)| {
+    let key = |axis: Axis, i: usize| -> i64 {
+        let c = &data.conds[i];
+        match axis {
+            Axis::Preload => (c.preload_n * 1e3).round() as i64,
+            Axis::Voltage => (c.voltage_v * 1e3).round() as i64,
+            Axis::Frequency => (c.frequency_hz * 1e3).round() as i64,
+            Axis::Load => load_rank[i],
+            Axis::Direction => i64::from(c.direction),
+        }
+    };
+    Axis::ALL
+        .iter()
+        .map(|&axis| {
             let mut groups: Vec<(i64, usize, f64)> = Vec::new();
             for (i, r) in resid.iter().enumerate().take(n) {
-                let k = key(i);
+                let k = key(axis, i);
                 match groups.iter_mut().find(|g| g.0 == k) {
                     Some(g) => {
                         g.1 += 1;
@@ -455,10 +532,47 @@ fn structure(data: &Data, resid: &[f64], s: f64) -> Vec<(String, usize, f64)> {
                 }
             }
             let chi2: f64 = groups.iter().map(|g| g.2 * g.2 / g.1 as f64).sum::<f64>() / (s * s);
-            let dof = groups.len().saturating_sub(1).max(1);
-            (name.to_string(), groups.len(), chi2 / dof as f64)
+            (axis, groups.len(), chi2)
         })
         .collect()
+}
+
+fn dof(levels: usize) -> usize {
+    levels.saturating_sub(1).max(1)
+}
+
+/// [`structure`] tested against the noise at level `alpha`, with `sig`'s conditions flagged.
+fn axis_structure(data: &Data, resid: &[f64], s: f64, alpha: f64, sig: &[Axis]) -> Vec<AxisStructure> {
+    structure(data, resid, s)
+        .into_iter()
+        .map(|(axis, levels, chi2)| {
+            let k = dof(levels);
+            let limit = chi2::quantile_upper(alpha, k);
+            AxisStructure {
+                condition: axis.label(),
+                levels,
+                chi2_per_dof: chi2 / k as f64,
+                noise_limit_per_dof: limit / k as f64,
+                consistent_with_noise: levels < 2 || chi2 <= limit,
+                signature: sig.contains(&axis),
+            }
+        })
+        .collect()
+}
+
+/// Whether a fit leaves its effect's signature conditions consistent with noise.
+fn clears_signature(st: &[AxisStructure]) -> bool {
+    st.iter().filter(|a| a.signature).all(|a| a.consistent_with_noise)
+}
+
+/// The parameter vector of `to` (a sub-model of `from`) taken from `x` of `from`.
+fn sub_x(from: &Model, x: &[f64], to: &Model) -> Vec<f64> {
+    let mut out: Vec<f64> = x[..BASE_PARAMS].to_vec();
+    for e in &to.effects {
+        let off = from.offset(e).unwrap_or(BASE_PARAMS);
+        out.extend_from_slice(&x[off..off + effect_params(e).len()]);
+    }
+    out
 }
 
 /// Progress of the workflow: a stage label and (done, total) steps within it.
@@ -529,6 +643,8 @@ pub fn analyze(
                 let lr = (state.fit.ssr - f.ssr) / (state.s * state.s);
                 let cv_with = cv_rms(&m, &data, &f.x, opts.folds);
                 let pred = m.predict(&f.x, &data, &all);
+                let structure =
+                    axis_structure(&data, &f.resid, state.s, opts.signature_alpha, signature(name));
                 let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 progress(&label, d, todo.len());
                 Candidate {
@@ -543,6 +659,8 @@ pub fn analyze(
                     gap: data.gap(&pred),
                     consistency: ratio(&f, n, m.n_params(), state.s),
                     accepted: false,
+                    partial: false,
+                    structure,
                     params: effect_named_params(&m, &f, name, state.s),
                     fit_x: f.x.clone(),
                     pred,
@@ -598,12 +716,7 @@ pub fn analyze(
                 }
                 let mut reduced = model.clone();
                 reduced.effects.retain(|x| *x != e);
-                let mut x: Vec<f64> = fit.x[..BASE_PARAMS].to_vec();
-                for r in &reduced.effects {
-                    let off = model.offset(r).unwrap_or(BASE_PARAMS);
-                    x.extend_from_slice(&fit.x[off..off + effect_params(r).len()]);
-                }
-                let f = lm_fit(&reduced, &data, &all, &[x], 60);
+                let f = lm_fit(&reduced, &data, &all, &[sub_x(&model, &fit.x, &reduced)], 60);
                 let k = effect_params(e).len() as f64;
                 let kept = (f.ssr - fit.ssr) / (state.s * state.s) - k * (n as f64).ln();
                 if kept < opts.min_delta_bic {
@@ -619,6 +732,69 @@ pub fn analyze(
         let s = if m == 0 || !s.is_finite() || s <= 0.0 { state.s } else { s };
         let r = ratio(&fit, n, model.n_params(), s);
         state = State { model, fit, s, ratio: r };
+    }
+    // Name only the effects whose own signature conditions are consistent with noise in the final
+    // fit (all accepted effects together, so structure one of them leaves cannot be blamed on
+    // another); the others are partial candidates and leave the model, which is refitted.
+    let signature_tests: Vec<SignatureTest> = state
+        .model
+        .effects
+        .iter()
+        .map(|e| {
+            let structure =
+                axis_structure(&data, &state.fit.resid, state.s, opts.signature_alpha, signature(e));
+            SignatureTest { effect: e.to_string(), named: clears_signature(&structure), structure }
+        })
+        .collect();
+    let failing: Vec<&'static str> =
+        state.model.effects.iter().zip(&signature_tests).filter(|(_, t)| !t.named).map(|(e, _)| *e).collect();
+    let mut partial_candidates = Vec::new();
+    if !failing.is_empty() {
+        let full_model = state.model.clone();
+        let full_x = state.fit.x.clone();
+        let mut named = state.model.clone();
+        named.effects.retain(|e| !failing.contains(e));
+        let fit = lm_fit(&named, &data, &all, &[sub_x(&full_model, &full_x, &named)], 60);
+        let (s, m) = data.noise_scale(&fit.resid);
+        let s = if m == 0 || !s.is_finite() || s <= 0.0 { state.s } else { s };
+        let r = ratio(&fit, n, named.n_params(), s);
+        let excess = |f: &Fit, p: usize| f.ssr / (s * s) - n.saturating_sub(p) as f64;
+        let excess_without = excess(&fit, named.n_params());
+        for &e in &failing {
+            let mut with = named.clone();
+            with.effects.push(e);
+            let mut starts = vec![sub_x(&full_model, &full_x, &with)];
+            starts.extend(candidate_starts(&fit.x, e, &data));
+            let f = lm_fit(&with, &data, &all, &starts, 60);
+            let structure = axis_structure(&data, &f.resid, s, opts.signature_alpha, signature(e));
+            let mut above: Vec<&AxisStructure> =
+                structure.iter().filter(|a| !a.consistent_with_noise).collect();
+            above.sort_by(|a, b| b.chi2_per_dof.total_cmp(&a.chi2_per_dof));
+            let pred = with.predict(&f.x, &data, &all);
+            let mut round = 0;
+            for c in candidates_out.iter_mut().filter(|c| c.accepted && c.effect == e) {
+                c.accepted = false;
+                c.partial = true;
+                round = c.round;
+            }
+            partial_candidates.push(PartialCandidate {
+                effect: e.to_string(),
+                round,
+                share_of_excess: if excess_without > 0.0 {
+                    (1.0 - excess(&f, with.n_params()) / excess_without).clamp(0.0, 1.0)
+                } else {
+                    0.0
+                },
+                consistency_without: r,
+                consistency_with: ratio(&f, n, with.n_params(), s),
+                gap_with: data.gap(&pred),
+                unexplained_signature: above.iter().filter(|a| a.signature).map(|a| a.condition).collect(),
+                unexplained_along: above.iter().map(|a| a.condition).collect(),
+                params: effect_named_params(&with, &f, e, s),
+                structure,
+            });
+        }
+        state = State { model: named, fit, s, ratio: r };
     }
     let pred_after = state.model.predict(&state.fit.x, &data, &all);
     let gap_after = data.gap(&pred_after);
@@ -636,11 +812,11 @@ pub fn analyze(
     let residual_structure = structure_before
         .into_iter()
         .zip(structure_after)
-        .map(|((condition, levels, before), (_, _, after))| Structure {
-            condition,
+        .map(|((axis, levels, before), (_, _, after))| Structure {
+            condition: axis.label().to_string(),
             levels,
-            chi2_per_dof_before: before,
-            chi2_per_dof_after: after,
+            chi2_per_dof_before: before / dof(levels) as f64,
+            chi2_per_dof_after: after / dof(levels) as f64,
         })
         .collect();
     Ok(GapReport {
@@ -648,6 +824,10 @@ pub fn analyze(
         gap_before,
         gap_after,
         named_effects: state.model.effects.iter().map(|e| e.to_string()).collect(),
+        nothing_missing: state.model.effects.is_empty() && partial_candidates.is_empty(),
+        partial_candidates,
+        signature_tests,
+        signature_alpha: opts.signature_alpha,
         final_effects,
         candidates: candidates_out,
         ambiguity,
@@ -656,7 +836,6 @@ pub fn analyze(
         noise_mm_s: s0 * (1.0 + fit::WEIGHT_FLOOR_OF_MEAN) * mean_mm_s,
         consistency_before: ratio0,
         consistency_after: state.ratio,
-        nothing_missing: state.model.effects.is_empty(),
         base_calibration: base_cal,
         final_calibration: base_calibration(&state.model, &state.fit, state.s),
         elapsed_s: t0.elapsed().as_secs_f64(),

@@ -29,14 +29,20 @@ pub fn write_all(
         toml,
         "# Base parameters recalibrated (friction.mu_dynamic/mu_static, stator.tangential_scale, stator.normal_force_ratio);"
     );
-    if r.named_effects.is_empty() {
+    if r.named_effects.is_empty() && r.partial_candidates.is_empty() {
         let _ = writeln!(toml, "# no effect was missing: the base model explains the data to within noise.");
+    } else if r.named_effects.is_empty() {
+        let _ = writeln!(toml, "# no library effect explains the data; none added.");
     } else {
         let _ = writeln!(
             toml,
             "# effects added: {} (one-sigma uncertainties in [effects.std_dev]).",
             r.named_effects.join(", ")
         );
+    }
+    if !r.partial_candidates.is_empty() {
+        let names: Vec<&str> = r.partial_candidates.iter().map(|p| p.effect.as_str()).collect();
+        let _ = writeln!(toml, "# partial candidates, not added (see report.md): {}.", names.join(", "));
     }
     let _ = writeln!(toml, "# gap before {:.4}, after {:.4}.\n", r.gap_before, r.gap_after);
     toml.push_str(&fitted.to_toml());
@@ -81,6 +87,12 @@ pub fn markdown(r: &GapReport, measured: &Path) -> String {
             "**Nothing missing**: the calibrated base model explains the data to within the noise \
              (or no candidate passed ΔBIC and cross-validation).\n"
         );
+    } else if r.named_effects.is_empty() {
+        let _ = writeln!(
+            s,
+            "**No library effect explains the data.** The closest ones explain part of it and leave \
+             structure above noise along their own conditions: see *Partial candidates*.\n"
+        );
     } else {
         let _ = writeln!(s, "**Named effects** (in the order accepted): {}\n", r.named_effects.join(", "));
         let _ = writeln!(s, "| effect | parameter | final fit | ± 1σ |\n|---|---|---|---|");
@@ -91,6 +103,8 @@ pub fn markdown(r: &GapReport, measured: &Path) -> String {
         }
         let _ = writeln!(s);
     }
+    partial_section(&mut s, r);
+    signature_section(&mut s, r);
     let _ = writeln!(
         s,
         "## Residual structure\n\nSpread of the mean weighted residual between the levels of each condition, \
@@ -140,7 +154,13 @@ pub fn markdown(r: &GapReport, measured: &Path) -> String {
             100.0 * c.cv_improvement,
             c.gap,
             c.consistency,
-            if c.accepted { "**yes**" } else { "no" },
+            if c.accepted {
+                "**yes**"
+            } else if c.partial {
+                "partial"
+            } else {
+                "no"
+            },
             fmt_params(c)
         );
     }
@@ -182,11 +202,92 @@ pub fn markdown(r: &GapReport, measured: &Path) -> String {
     s
 }
 
+fn fmt_structure(a: &super::AxisStructure) -> String {
+    format!("{} {:.1} (noise ≤ {:.1})", a.condition, a.chi2_per_dof, a.noise_limit_per_dof)
+}
+
+/// Partial candidates: what share of the excess each explains, and where the rest lies.
+fn partial_section(s: &mut String, r: &GapReport) {
+    if r.partial_candidates.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "## Partial candidates\n\nAccepted by ΔBIC and cross-validation, but their fit leaves structure \
+         above noise along the conditions their own law acts on: they explain part of the gap, not \
+         all of it, and are not added to the fitted model. Share: the part of the excess over noise \
+         (SSR/s² − (n − p)) of the model with the named effects that adding the candidate removes.\n"
+    );
+    let _ = writeln!(
+        s,
+        "| effect | round | share of the excess | R without → with | gap with | still above noise along its conditions | also above noise | parameters |\n|---|---|---|---|---|---|---|---|"
+    );
+    for p in &r.partial_candidates {
+        let sig: Vec<String> = p
+            .structure
+            .iter()
+            .filter(|a| a.signature && !a.consistent_with_noise)
+            .map(fmt_structure)
+            .collect();
+        let other: Vec<String> = p
+            .structure
+            .iter()
+            .filter(|a| !a.signature && !a.consistent_with_noise)
+            .map(fmt_structure)
+            .collect();
+        let params: Vec<String> =
+            p.params.iter().map(|q| format!("{} = {:.4} ± {:.4}", q.name, q.value, q.std_dev)).collect();
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.0} % | {:.2} → {:.2} | {:.4} | {} | {} | {} |",
+            p.effect,
+            p.round,
+            100.0 * p.share_of_excess,
+            p.consistency_without,
+            p.consistency_with,
+            p.gap_with,
+            sig.join(", "),
+            if other.is_empty() { "—".to_string() } else { other.join(", ") },
+            params.join(", ")
+        );
+    }
+    let _ = writeln!(s);
+}
+
+/// The naming decision of each accepted effect, in the final joint fit.
+fn signature_section(s: &mut String, r: &GapReport) {
+    if r.signature_tests.is_empty() {
+        return;
+    }
+    let _ = writeln!(
+        s,
+        "## Signature test\n\nAn accepted effect is named only when, in the final fit of all accepted \
+         effects together, the residual structure (χ²/dof of the level means in noise units) along \
+         each condition its law acts on stays below the χ² quantile that noise exceeds with \
+         probability {} % for that condition's levels − 1 degrees of freedom; structure along other \
+         conditions does not count against it.\n\n| effect | its conditions (χ²/dof, limit) | decision |\n|---|---|---|",
+        100.0 * r.signature_alpha
+    );
+    for t in &r.signature_tests {
+        let sig: Vec<String> = t.structure.iter().filter(|a| a.signature).map(fmt_structure).collect();
+        let _ = writeln!(
+            s,
+            "| {} | {} | {} |",
+            t.effect,
+            sig.join(", "),
+            if t.named { "named" } else { "partial" }
+        );
+    }
+    let _ = writeln!(s);
+}
+
 pub fn print_summary(r: &GapReport, out: &Path) {
     println!("rows {}, noise ≈ {:.4} mm/s, {:.1} s", r.rows, r.noise_mm_s, r.elapsed_s);
     println!("gap before {:.4} (residual/noise variance {:.2})", r.gap_before, r.consistency_before);
     if r.nothing_missing {
         println!("nothing missing: the base model explains the data to within noise");
+    } else if r.named_effects.is_empty() {
+        println!("named effects: none (no library effect explains the data)");
     } else {
         println!("named effects: {}", r.named_effects.join(", "));
         for e in &r.final_effects {
@@ -194,6 +295,23 @@ pub fn print_summary(r: &GapReport, out: &Path) {
                 println!("  {}.{} = {:.5} ± {:.5}", e.name, p.name, p.value, p.std_dev);
             }
         }
+    }
+    for p in &r.partial_candidates {
+        let along: Vec<String> = p
+            .structure
+            .iter()
+            .filter(|a| !a.consistent_with_noise)
+            .map(|a| format!("{} {:.1}", a.condition, a.chi2_per_dof))
+            .collect();
+        println!(
+            "partial candidate (not named): {}, explains {:.0} % of the excess (R {:.2} -> {:.2}); \
+             still above noise (χ²/dof): {}",
+            p.effect,
+            100.0 * p.share_of_excess,
+            p.consistency_without,
+            p.consistency_with,
+            along.join(", ")
+        );
     }
     println!("gap after  {:.4} (residual/noise variance {:.2})", r.gap_after, r.consistency_after);
     let structure: Vec<String> = r
@@ -218,7 +336,13 @@ pub fn print_summary(r: &GapReport, out: &Path) {
             100.0 * c.cv_improvement,
             c.gap,
             fmt_params(c),
-            if c.accepted { "  <- accepted" } else { "" }
+            if c.accepted {
+                "  <- accepted"
+            } else if c.partial {
+                "  <- partial"
+            } else {
+                ""
+            }
         );
     }
     for a in &r.ambiguity {
