@@ -1,7 +1,6 @@
 //! The commands a host gives (GCS `SVO`, `MOV`, `MVR`, `HLT`, `STP`, `XOS`, `FRF`, `SPA`…):
 //! each checks what it needs and sets the state the next [`Controller::step`] acts on.
 
-use super::model_cache::ModelSlot;
 use super::open_loop::OpenLoopRun;
 use super::referencing::ReferenceSearch;
 use super::{validate_settings, Activity, CommandError, Controller, ControllerConfig, Mode, State};
@@ -25,7 +24,7 @@ impl Controller {
             self.preload = PreloadCell::new(cfg.preload);
         }
         self.cfg = cfg;
-        self.model = ModelSlot::new(&self.cfg, self.model.generation.wrapping_add(1));
+        self.model.reconfigure(&self.cfg);
         Ok(())
     }
 

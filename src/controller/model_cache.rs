@@ -281,6 +281,14 @@ impl ModelSlot {
             table: None,
         }
     }
+
+    /// New settings: the table they need is asked for anew, the old one dropped. In place,
+    /// because a whole slot moved by value copies the table's kilobytes under the tick lock.
+    pub(super) fn reconfigure(&mut self, cfg: &ControllerConfig) {
+        self.per_volt = cfg.motor.at_frequency(fx_from_f32(cfg.drive_freq_hz / 1000.0));
+        self.generation = self.generation.wrapping_add(1);
+        self.table = None;
+    }
 }
 
 impl Controller {
