@@ -215,7 +215,7 @@ fn an_external_trip_keeps_the_first_fault() {
 
 #[test]
 fn exactly_the_queries_and_status_bytes_are_read_only() {
-    for (name, _, _) in COMMANDS {
+    for name in COMMANDS.iter().map(|c| c.name) {
         let pending = if let Some(n) = name.strip_prefix('#') {
             Pending::Byte(n.parse::<u8>().unwrap())
         } else {
@@ -224,7 +224,7 @@ fn exactly_the_queries_and_status_bytes_are_read_only() {
             line.extend_from_slice(b" 1").unwrap();
             Pending::Line(line)
         };
-        let expect = matches!(*name, "#5" | "#7") || name.ends_with('?');
+        let expect = matches!(name, "#5" | "#7") || name.ends_with('?');
         assert_eq!(Gcs::is_read_only(&pending), expect, "{name}");
     }
     // Lower case and leading blanks as the executor accepts them.
@@ -251,7 +251,7 @@ fn every_query_gives_the_same_reply_on_a_copy_and_leaves_the_controller_alone() 
     let twin = ctl.clone();
     let mut gcs_twin = Gcs::new();
     send(&mut gcs_twin, &mut ctl.clone(), b"RON 1 1\n");
-    for (name, _, _) in COMMANDS.iter().filter(|c| c.0.ends_with('?')) {
+    for name in COMMANDS.iter().map(|c| c.name).filter(|n| n.ends_with('?')) {
         let line = format!("{name}\n");
         let mut copy = ctl.clone();
         let on_copy = send(&mut gcs_twin, &mut copy, line.as_bytes());

@@ -86,50 +86,102 @@ pub enum Pending {
     Byte(u8),
 }
 
-/// The commands, as `HLP?` lists them: name, arguments, description.
-pub static COMMANDS: &[(&str, &str, &str)] = &[
-    ("#5", "", "Request Motion Status"),
-    ("#7", "", "Request Controller Ready Status"),
-    ("#24", "", "Stop All Axes"),
-    ("*IDN?", "", "Get Device Identification"),
-    ("ACC", "{<AxisID> <Acceleration>}", "Set Closed-Loop Acceleration"),
-    ("ACC?", "[{<AxisID>}]", "Get Closed-Loop Acceleration"),
-    ("CST?", "[{<AxisID>}]", "Get Assignment Of Stages To Axes"),
-    ("CSV?", "", "Get Current Syntax Version"),
-    ("DEC", "{<AxisID> <Deceleration>}", "Set Closed-Loop Deceleration"),
-    ("DEC?", "[{<AxisID>}]", "Get Closed-Loop Deceleration"),
-    ("ERR?", "", "Get Error Number"),
-    ("FRF", "[{<AxisID>}]", "Fast Reference Move To Reference Mark"),
-    ("FRF?", "[{<AxisID>}]", "Get Referencing Result"),
-    ("HLP?", "", "Get List Of Available Commands"),
-    ("HLT", "[{<AxisID>}]", "Halt Motion Smoothly"),
-    ("HPA?", "", "Get List Of Available Parameters"),
-    ("MOV", "{<AxisID> <Position>}", "Set Target Position"),
-    ("MOV?", "[{<AxisID>}]", "Get Target Position"),
-    ("MVR", "{<AxisID> <Distance>}", "Set Target Relative To Current Target"),
-    ("ONT?", "[{<AxisID>}]", "Get On Target State"),
-    ("POS", "{<AxisID> <Position>}", "Set Real Position (Reference Mode Off)"),
-    ("POS?", "[{<AxisID>}]", "Get Real Position"),
-    ("RON", "{<AxisID> <ReferenceOn>}", "Set Reference Mode"),
-    ("RON?", "[{<AxisID>}]", "Get Reference Mode"),
-    ("SAI?", "[ALL]", "Get List Of Current Axis Identifiers"),
-    ("SPA", "{<ItemID> <PamID> <PamValue>}", "Set Volatile Memory Parameters"),
-    ("SPA?", "[{<ItemID> <PamID>}]", "Get Volatile Memory Parameters"),
-    ("STP", "", "Stop All Axes"),
-    ("SVO", "{<AxisID> <ServoState>}", "Set Servo Mode"),
-    ("SVO?", "[{<AxisID>}]", "Get Servo Mode"),
-    ("TMN?", "[{<AxisID>}]", "Get Minimum Commandable Position"),
-    ("TMX?", "[{<AxisID>}]", "Get Maximum Commandable Position"),
-    ("VEL", "{<AxisID> <Velocity>}", "Set Closed-Loop Velocity"),
-    ("VEL?", "[{<AxisID>}]", "Get Closed-Loop Velocity"),
-    ("WPA", "[<Password>]", "Save Parameters To Non-Volatile Memory (Servo Off And Idle Only)"),
-    ("XDA?", "[{<AxisID>}]", "Get Drive Amplitude In V Peak-To-Peak (extension)"),
-    ("XDF?", "[{<AxisID>}]", "Get Drive Frequency In Hz (extension)"),
-    ("XFT?", "[{<AxisID>}]", "Get Fault Code And Text (extension)"),
-    ("XLT?", "", "Get Control-Loop Timing (extension)"),
-    ("XOS", "<AxisID> <Cycles> <Amplitude> <Frequency>", "Open-Loop Stepping With Servo Off (extension)"),
-    ("XPF?", "[{<AxisID>}]", "Get Preload Force In N (extension)"),
-    ("XTM?", "[{<AxisID>}]", "Get Stall Force In N And No-Load Speed In mm/s At Present Preload (extension)"),
+/// One GCS command: its name, arguments and description as `HLP?` lists them, and what runs it.
+pub struct Command {
+    pub name: &'static str,
+    pub syntax: &'static str,
+    pub help: &'static str,
+    /// The handler of a line command; `None` for the single-byte commands (#5, #7, #24), which
+    /// [`Gcs::execute`] answers from the byte itself.
+    run: Option<Handler>,
+    /// Changes nothing but the controller's settings (see [`Gcs::is_settings_only`]).
+    pub settings_only: bool,
+}
+
+/// What a line command works with: its arguments (the tokens after the name), the controller,
+/// the board and the reply under construction.
+struct Call<'c, 'r> {
+    args: &'c [&'c [u8]],
+    ctl: &'c mut Controller,
+    board: &'c mut dyn Board,
+    out: &'c mut Out<'r>,
+}
+
+type Handler = fn(&mut Gcs, Call) -> GcsResult;
+
+impl Command {
+    /// A single-byte command (answered in [`Gcs::execute`] from the byte).
+    const fn byte(name: &'static str, help: &'static str) -> Self {
+        Command { name, syntax: "", help, run: None, settings_only: false }
+    }
+    const fn line(name: &'static str, syntax: &'static str, help: &'static str, run: Handler) -> Self {
+        Command { name, syntax, help, run: Some(run), settings_only: false }
+    }
+    /// A line command that changes only settings.
+    const fn settings(name: &'static str, syntax: &'static str, help: &'static str, run: Handler) -> Self {
+        Command { name, syntax, help, run: Some(run), settings_only: true }
+    }
+}
+
+/// The commands, in the order `HLP?` lists them; the line commands' handlers are below.
+pub static COMMANDS: &[Command] = &[
+    Command::byte("#5", "Request Motion Status"),
+    Command::byte("#7", "Request Controller Ready Status"),
+    Command::byte("#24", "Stop All Axes"),
+    Command::line("*IDN?", "", "Get Device Identification", idn_query),
+    Command::settings("ACC", "{<AxisID> <Acceleration>}", "Set Closed-Loop Acceleration", acc),
+    Command::line("ACC?", "[{<AxisID>}]", "Get Closed-Loop Acceleration", acc_query),
+    Command::line("CST?", "[{<AxisID>}]", "Get Assignment Of Stages To Axes", cst_query),
+    Command::line("CSV?", "", "Get Current Syntax Version", csv_query),
+    Command::settings("DEC", "{<AxisID> <Deceleration>}", "Set Closed-Loop Deceleration", dec),
+    Command::line("DEC?", "[{<AxisID>}]", "Get Closed-Loop Deceleration", dec_query),
+    Command::line("ERR?", "", "Get Error Number", err_query),
+    Command::line("FRF", "[{<AxisID>}]", "Fast Reference Move To Reference Mark", frf),
+    Command::line("FRF?", "[{<AxisID>}]", "Get Referencing Result", frf_query),
+    Command::line("HLP?", "", "Get List Of Available Commands", hlp_query),
+    Command::line("HLT", "[{<AxisID>}]", "Halt Motion Smoothly", hlt),
+    Command::line("HPA?", "", "Get List Of Available Parameters", hpa_query),
+    Command::line("MOV", "{<AxisID> <Position>}", "Set Target Position", mov),
+    Command::line("MOV?", "[{<AxisID>}]", "Get Target Position", mov_query),
+    Command::line("MVR", "{<AxisID> <Distance>}", "Set Target Relative To Current Target", mvr),
+    Command::line("ONT?", "[{<AxisID>}]", "Get On Target State", ont_query),
+    Command::line("POS", "{<AxisID> <Position>}", "Set Real Position (Reference Mode Off)", pos),
+    Command::line("POS?", "[{<AxisID>}]", "Get Real Position", pos_query),
+    Command::line("RON", "{<AxisID> <ReferenceOn>}", "Set Reference Mode", ron),
+    Command::line("RON?", "[{<AxisID>}]", "Get Reference Mode", ron_query),
+    Command::line("SAI?", "[ALL]", "Get List Of Current Axis Identifiers", sai_query),
+    Command::settings("SPA", "{<ItemID> <PamID> <PamValue>}", "Set Volatile Memory Parameters", spa),
+    Command::line("SPA?", "[{<ItemID> <PamID>}]", "Get Volatile Memory Parameters", spa_query),
+    Command::line("STP", "", "Stop All Axes", stp),
+    Command::line("SVO", "{<AxisID> <ServoState>}", "Set Servo Mode", svo),
+    Command::line("SVO?", "[{<AxisID>}]", "Get Servo Mode", svo_query),
+    Command::line("TMN?", "[{<AxisID>}]", "Get Minimum Commandable Position", tmn_query),
+    Command::line("TMX?", "[{<AxisID>}]", "Get Maximum Commandable Position", tmx_query),
+    Command::settings("VEL", "{<AxisID> <Velocity>}", "Set Closed-Loop Velocity", vel),
+    Command::line("VEL?", "[{<AxisID>}]", "Get Closed-Loop Velocity", vel_query),
+    Command::line(
+        "WPA",
+        "[<Password>]",
+        "Save Parameters To Non-Volatile Memory (Servo Off And Idle Only)",
+        wpa,
+    ),
+    Command::line("XDA?", "[{<AxisID>}]", "Get Drive Amplitude In V Peak-To-Peak (extension)", xda_query),
+    Command::line("XDF?", "[{<AxisID>}]", "Get Drive Frequency In Hz (extension)", xdf_query),
+    Command::line("XFT?", "[{<AxisID>}]", "Get Fault Code And Text (extension)", xft_query),
+    Command::line("XLT?", "", "Get Control-Loop Timing (extension)", xlt_query),
+    Command::line(
+        "XOS",
+        "<AxisID> <Cycles> <Amplitude> <Frequency>",
+        "Open-Loop Stepping With Servo Off (extension)",
+        xos,
+    ),
+    Command::line("XPF?", "[{<AxisID>}]", "Get Preload Force In N (extension)", xpf_query),
+    Command::line(
+        "XTM?",
+        "[{<AxisID>}]",
+        "Get Stall Force In N And No-Load Speed In mm/s At Present Preload (extension)",
+        xtm_query,
+    ),
 ];
 
 /// `*IDN?` fields: maker, model, (serial), version (three dot-separated parts at most).
@@ -361,7 +413,7 @@ impl Gcs {
                     return true; // empty line
                 };
                 COMMANDS.iter().any(|c| {
-                    c.0.as_bytes().eq_ignore_ascii_case(cmd) && !c.0.starts_with('#') && c.0.ends_with('?')
+                    c.name.as_bytes().eq_ignore_ascii_case(cmd) && c.run.is_some() && c.name.ends_with('?')
                 })
             }
         }
@@ -377,7 +429,7 @@ impl Gcs {
         let Some(cmd) = line.split(|&b| is_space(b)).find(|t| !t.is_empty()) else {
             return false;
         };
-        ["SPA", "VEL", "ACC", "DEC"].iter().any(|n| n.as_bytes().eq_ignore_ascii_case(cmd))
+        COMMANDS.iter().any(|c| c.settings_only && c.name.as_bytes().eq_ignore_ascii_case(cmd))
     }
 
     /// The latched error (without clearing it).
@@ -454,304 +506,12 @@ impl Gcs {
         let Some((cmd, args)) = tokens.split_first() else {
             return Ok(()); // empty line
         };
-        let name = COMMANDS
+        let run = COMMANDS
             .iter()
-            .map(|c| c.0)
-            .find(|n| n.as_bytes().eq_ignore_ascii_case(cmd) && !n.starts_with('#'))
+            .find(|c| c.name.as_bytes().eq_ignore_ascii_case(cmd))
+            .and_then(|c| c.run)
             .ok_or(error::UNKNOWN_COMMAND)?;
-        self.run(name, args, ctl, board, out)
-    }
-
-    fn run(
-        &mut self,
-        name: &str,
-        args: &[&[u8]],
-        ctl: &mut Controller,
-        board: &mut dyn Board,
-        out: &mut Out,
-    ) -> GcsResult {
-        match name {
-            "*IDN?" => {
-                no_args(args)?;
-                out.line();
-                out.s(IDN_MAKER);
-                out.s(", ");
-                out.s(IDN_MODEL);
-                out.s(", ");
-                // Six digits at least, as PI prints serial numbers.
-                let serial = board.serial_number();
-                let mut p = 100_000u32;
-                while p > 1 && serial < p {
-                    out.s("0");
-                    p /= 10;
-                }
-                out.u(u64::from(serial));
-                out.s(", ");
-                out.s(IDN_VERSION);
-            }
-            "CSV?" => {
-                no_args(args)?;
-                out.line();
-                out.s("2.0");
-            }
-            "ERR?" => {
-                no_args(args)?;
-                out.line();
-                out.i(i64::from(self.error));
-                self.error = error::NONE;
-            }
-            "HLP?" => {
-                no_args(args)?;
-                out.line();
-                out.s("The following commands are valid:");
-                for (cmd, syntax, text) in COMMANDS {
-                    out.line();
-                    out.s(cmd);
-                    if !syntax.is_empty() {
-                        out.s(" ");
-                        out.s(syntax);
-                    }
-                    out.s(" ");
-                    out.s(text);
-                }
-                out.line();
-                out.s("end of help");
-            }
-            "HPA?" => {
-                no_args(args)?;
-                out.line();
-                out.s("#Possible parameters of this device:");
-                for p in params::PARAMS {
-                    out.line();
-                    out.s("0x");
-                    hex(out, p.id);
-                    out.s("=\t0\t1\t");
-                    out.s(p.kind.name());
-                    out.s("\t");
-                    out.s(p.group);
-                    out.s("\t");
-                    out.s(p.description);
-                    if !p.unit.is_empty() {
-                        out.s(" (");
-                        out.s(p.unit);
-                        out.s(")");
-                    }
-                }
-                out.line();
-                out.s("end of help");
-            }
-            "SAI?" => {
-                match args {
-                    [] => {}
-                    [all] if all.eq_ignore_ascii_case(b"ALL") => {}
-                    [_] => return Err(error::PARAM_SYNTAX),
-                    _ => return Err(error::WRONG_PARAM_COUNT),
-                }
-                out.line();
-                out.s("1");
-            }
-            "CST?" => self.axis_query(args, out, |out| out.s(STAGE_NAME))?,
-            "SVO?" => self.axis_query(args, out, |out| out.u(u64::from(ctl.servo())))?,
-            "RON?" => {
-                let ron = self.reference_mode;
-                self.axis_query(args, out, |out| out.u(u64::from(ron)))?
-            }
-            "FRF?" => self.axis_query(args, out, |out| out.u(u64::from(ctl.referenced())))?,
-            "ONT?" => self.axis_query(args, out, |out| out.u(u64::from(ctl.on_target())))?,
-            "POS?" => self.axis_query(args, out, |out| out.mm(ctl.position_nm()))?,
-            "MOV?" => self.axis_query(args, out, |out| out.mm(ctl.target_nm()))?,
-            "TMN?" => self.axis_query(args, out, |out| out.mm(ctl.config().travel_min_nm))?,
-            "TMX?" => self.axis_query(args, out, |out| out.mm(ctl.config().travel_max_nm))?,
-            "VEL?" => {
-                let v = f64::from(ctl.config().velocity_max_nm_s / 1e6);
-                self.axis_query(args, out, |out| out.general(v))?
-            }
-            "ACC?" => {
-                let v = f64::from(ctl.config().accel_max_nm_s2 / 1e6);
-                self.axis_query(args, out, |out| out.general(v))?
-            }
-            "DEC?" => {
-                let v = f64::from(ctl.config().decel_max_nm_s2 / 1e6);
-                self.axis_query(args, out, |out| out.general(v))?
-            }
-            "XPF?" => {
-                let f = ctl.preload_n().ok_or(error::SENSOR_SIGNAL_INVALID)?;
-                self.axis_query(args, out, |out| out.fixed(f64::from(f), 3))?
-            }
-            "XDA?" => {
-                let v = f64::from(ctl.drive_voltage_v());
-                self.axis_query(args, out, |out| out.fixed(v, 3))?
-            }
-            "XDF?" => {
-                let f = f64::from(ctl.drive_frequency_hz());
-                self.axis_query(args, out, |out| out.fixed(f, 1))?
-            }
-            "XFT?" => {
-                let fault = ctl.fault();
-                self.axis_query(args, out, |out| match fault {
-                    Some(code) => {
-                        out.u(code as u64);
-                        out.s(" ");
-                        out.s(code.text());
-                    }
-                    None => out.s("0 no fault"),
-                })?
-            }
-            "XTM?" => {
-                let (stall, speed) = ctl.thrust_limits().ok_or(error::SENSOR_SIGNAL_INVALID)?;
-                self.axis_query(args, out, |out| {
-                    out.fixed(f64::from(stall), 3);
-                    out.s(" ");
-                    out.fixed(f64::from(speed), 3);
-                })?
-            }
-            "XLT?" => {
-                no_args(args)?;
-                let s = board.loop_stats();
-                for (key, v) in [
-                    ("step_cycles_last", s.step_cycles_last),
-                    ("step_cycles_max", s.step_cycles_max),
-                    ("overruns", s.overruns),
-                    ("core_clock_hz", s.core_clock_hz),
-                ] {
-                    out.line();
-                    out.s(key);
-                    out.s("=");
-                    out.u(u64::from(v));
-                }
-            }
-            "SVO" => {
-                let on = pairs(args, flag)?;
-                if ctl.referencing() {
-                    return Err(error::CONTROLLER_BUSY);
-                }
-                if ctl.fault().is_none() && ctl.servo() == on {
-                    // Already so: nothing to do (servo on again must not re-anchor a moving
-                    // slider's reference where it stands).
-                    return Ok(());
-                }
-                if ctl.fault().is_some() {
-                    // As on PI controllers after a motion error: switching the servo (on or off)
-                    // again is the recovery. Check what servo-on needs before clearing.
-                    if on {
-                        self.check_preload(ctl)?;
-                    }
-                    ctl.clear_fault();
-                }
-                ctl.set_servo(on).map_err(command_error)?;
-            }
-            "RON" => {
-                self.reference_mode = pairs(args, flag)?;
-            }
-            "FRF" => {
-                for a in args {
-                    axis(a)?;
-                }
-                if !self.reference_mode {
-                    return Err(error::REF_WITH_REF_DISABLED);
-                }
-                ctl.start_referencing().map_err(command_error)?;
-            }
-            "POS" => {
-                // Within the travel limits: beyond them the distance to a later target could
-                // overflow, and the stage cannot be there anyway.
-                let nm = pairs(args, |t| within_travel(ctl, position_nm(t)?))?;
-                if self.reference_mode {
-                    return Err(error::NOT_ALLOWED);
-                }
-                if ctl.in_motion() {
-                    return Err(error::CONTROLLER_BUSY);
-                }
-                ctl.set_reference_here(nm);
-            }
-            "MOV" => {
-                // Syntax of every pair, then whether a move is allowed at all, then the limits
-                // of every pair.
-                pairs(args, position_nm)?;
-                self.move_allowed(ctl)?;
-                let target = pairs(args, |t| within_travel(ctl, position_nm(t)?))?;
-                ctl.move_to(target).map_err(command_error)?;
-            }
-            "MVR" => {
-                pairs(args, position_nm)?;
-                self.move_allowed(ctl)?;
-                let base = ctl.target_nm();
-                let target = pairs(args, |t| {
-                    let target = base.checked_add(position_nm(t)?).ok_or(error::POS_OUT_OF_LIMITS)?;
-                    within_travel(ctl, target)
-                })?;
-                ctl.move_to(target).map_err(command_error)?;
-            }
-            "VEL" | "ACC" | "DEC" => {
-                let bad = if name == "VEL" { error::VEL_OUT_OF_LIMITS } else { error::PARAM_OUT_OF_RANGE };
-                // Each pair's value is checked as the whole configuration it would make.
-                let cfg = pairs(args, |t| {
-                    let x = to_f32(&number(t)?).map(|x| x * 1e6).filter(|x| x.is_finite() && *x > 0.0);
-                    let x = x.ok_or(bad)?;
-                    let mut cfg = *ctl.config();
-                    match name {
-                        "VEL" => cfg.velocity_max_nm_s = x,
-                        "ACC" => cfg.accel_max_nm_s2 = x,
-                        _ => cfg.decel_max_nm_s2 = x,
-                    }
-                    validate_settings(&cfg).map_err(|_| bad)?;
-                    Ok(cfg)
-                })?;
-                ctl.set_config(cfg).map_err(|_| bad)?;
-            }
-            "STP" => {
-                no_args(args)?;
-                ctl.stop();
-                return Err(error::STOPPED);
-            }
-            "HLT" => {
-                for a in args {
-                    axis(a)?;
-                }
-                ctl.halt();
-                return Err(error::STOPPED);
-            }
-            "SPA" => self.spa(args, ctl)?,
-            "SPA?" => self.spa_query(args, ctl, out)?,
-            "WPA" => {
-                match args {
-                    [] => {}
-                    [pw] if *pw == b"100" => {}
-                    [_] => return Err(error::INVALID_PASSWORD),
-                    _ => return Err(error::WRONG_PARAM_COUNT),
-                }
-                // Writing the flash stalls the CPU (about 20 ms on the board): only with the
-                // drive quiet, servo off and nothing moving.
-                if ctl.state() != State::Idle || ctl.servo() || ctl.in_motion() || ctl.referencing() {
-                    return Err(error::NOT_ALLOWED);
-                }
-                if !board.store_parameters(ctl.config()) {
-                    return Err(error::FLASH_PROGRAM_FAILED);
-                }
-            }
-            "XOS" => {
-                let [a, cycles, amplitude, frequency] = args else {
-                    return Err(if args.is_empty() {
-                        error::MISSING_PARAM
-                    } else {
-                        error::WRONG_PARAM_COUNT
-                    });
-                };
-                axis(a)?;
-                let cycles = parse_int(cycles).ok_or(error::PARAM_SYNTAX)?;
-                let amplitude = number(amplitude)?;
-                let frequency = number(frequency)?;
-                let cycles = i32::try_from(cycles)
-                    .ok()
-                    .filter(|c| *c != 0 && c.unsigned_abs() <= 1_000_000)
-                    .ok_or(error::PARAM_OUT_OF_RANGE)?;
-                let amplitude = to_f32(&amplitude).ok_or(error::PARAM_OUT_OF_RANGE)?;
-                let frequency = to_f32(&frequency).ok_or(error::PARAM_OUT_OF_RANGE)?;
-                ctl.open_loop_step(cycles, amplitude, frequency).map_err(command_error)?;
-            }
-            _ => return Err(error::UNKNOWN_COMMAND),
-        }
-        Ok(())
+        run(self, Call { args, ctl, board, out })
     }
 
     /// `XYZ? [{<AxisID>}]`: one `1=value` line per requested axis.
@@ -837,6 +597,425 @@ impl Gcs {
         }
         Ok(())
     }
+}
+
+// ---- the line commands: one handler each, named after the command (`…_query` for `…?`) ----
+
+fn idn_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, board, out, .. } = c;
+    no_args(args)?;
+    out.line();
+    out.s(IDN_MAKER);
+    out.s(", ");
+    out.s(IDN_MODEL);
+    out.s(", ");
+    // Six digits at least, as PI prints serial numbers.
+    let serial = board.serial_number();
+    let mut p = 100_000u32;
+    while p > 1 && serial < p {
+        out.s("0");
+        p /= 10;
+    }
+    out.u(u64::from(serial));
+    out.s(", ");
+    out.s(IDN_VERSION);
+    Ok(())
+}
+
+fn csv_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, out, .. } = c;
+    no_args(args)?;
+    out.line();
+    out.s("2.0");
+    Ok(())
+}
+
+fn err_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, out, .. } = c;
+    no_args(args)?;
+    out.line();
+    out.i(i64::from(gcs.error));
+    gcs.error = error::NONE;
+    Ok(())
+}
+
+fn hlp_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, out, .. } = c;
+    no_args(args)?;
+    out.line();
+    out.s("The following commands are valid:");
+    for c in COMMANDS {
+        out.line();
+        out.s(c.name);
+        if !c.syntax.is_empty() {
+            out.s(" ");
+            out.s(c.syntax);
+        }
+        out.s(" ");
+        out.s(c.help);
+    }
+    out.line();
+    out.s("end of help");
+    Ok(())
+}
+
+fn hpa_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, out, .. } = c;
+    no_args(args)?;
+    out.line();
+    out.s("#Possible parameters of this device:");
+    for p in params::PARAMS {
+        out.line();
+        out.s("0x");
+        hex(out, p.id);
+        out.s("=\t0\t1\t");
+        out.s(p.kind.name());
+        out.s("\t");
+        out.s(p.group);
+        out.s("\t");
+        out.s(p.description);
+        if !p.unit.is_empty() {
+            out.s(" (");
+            out.s(p.unit);
+            out.s(")");
+        }
+    }
+    out.line();
+    out.s("end of help");
+    Ok(())
+}
+
+fn sai_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, out, .. } = c;
+    match args {
+        [] => {}
+        [all] if all.eq_ignore_ascii_case(b"ALL") => {}
+        [_] => return Err(error::PARAM_SYNTAX),
+        _ => return Err(error::WRONG_PARAM_COUNT),
+    }
+    out.line();
+    out.s("1");
+    Ok(())
+}
+
+fn cst_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, out, .. } = c;
+    gcs.axis_query(args, out, |out| out.s(STAGE_NAME))?;
+    Ok(())
+}
+
+fn svo_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    gcs.axis_query(args, out, |out| out.u(u64::from(ctl.servo())))?;
+    Ok(())
+}
+
+fn ron_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, out, .. } = c;
+    let ron = gcs.reference_mode;
+    gcs.axis_query(args, out, |out| out.u(u64::from(ron)))?;
+    Ok(())
+}
+
+fn frf_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    gcs.axis_query(args, out, |out| out.u(u64::from(ctl.referenced())))?;
+    Ok(())
+}
+
+fn ont_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    gcs.axis_query(args, out, |out| out.u(u64::from(ctl.on_target())))?;
+    Ok(())
+}
+
+fn pos_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    gcs.axis_query(args, out, |out| out.mm(ctl.position_nm()))?;
+    Ok(())
+}
+
+fn mov_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    gcs.axis_query(args, out, |out| out.mm(ctl.target_nm()))?;
+    Ok(())
+}
+
+fn tmn_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    gcs.axis_query(args, out, |out| out.mm(ctl.config().travel_min_nm))?;
+    Ok(())
+}
+
+fn tmx_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    gcs.axis_query(args, out, |out| out.mm(ctl.config().travel_max_nm))?;
+    Ok(())
+}
+
+fn vel_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    let v = f64::from(ctl.config().velocity_max_nm_s / 1e6);
+    gcs.axis_query(args, out, |out| out.general(v))?;
+    Ok(())
+}
+
+fn acc_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    let v = f64::from(ctl.config().accel_max_nm_s2 / 1e6);
+    gcs.axis_query(args, out, |out| out.general(v))?;
+    Ok(())
+}
+
+fn dec_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    let v = f64::from(ctl.config().decel_max_nm_s2 / 1e6);
+    gcs.axis_query(args, out, |out| out.general(v))?;
+    Ok(())
+}
+
+fn xpf_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    let f = ctl.preload_n().ok_or(error::SENSOR_SIGNAL_INVALID)?;
+    gcs.axis_query(args, out, |out| out.fixed(f64::from(f), 3))?;
+    Ok(())
+}
+
+fn xda_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    let v = f64::from(ctl.drive_voltage_v());
+    gcs.axis_query(args, out, |out| out.fixed(v, 3))?;
+    Ok(())
+}
+
+fn xdf_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    let f = f64::from(ctl.drive_frequency_hz());
+    gcs.axis_query(args, out, |out| out.fixed(f, 1))?;
+    Ok(())
+}
+
+fn xft_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    let fault = ctl.fault();
+    gcs.axis_query(args, out, |out| match fault {
+        Some(code) => {
+            out.u(code as u64);
+            out.s(" ");
+            out.s(code.text());
+        }
+        None => out.s("0 no fault"),
+    })?;
+    Ok(())
+}
+
+fn xtm_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    let (stall, speed) = ctl.thrust_limits().ok_or(error::SENSOR_SIGNAL_INVALID)?;
+    gcs.axis_query(args, out, |out| {
+        out.fixed(f64::from(stall), 3);
+        out.s(" ");
+        out.fixed(f64::from(speed), 3);
+    })?;
+    Ok(())
+}
+
+fn xlt_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, board, out, .. } = c;
+    no_args(args)?;
+    let s = board.loop_stats();
+    for (key, v) in [
+        ("step_cycles_last", s.step_cycles_last),
+        ("step_cycles_max", s.step_cycles_max),
+        ("overruns", s.overruns),
+        ("core_clock_hz", s.core_clock_hz),
+    ] {
+        out.line();
+        out.s(key);
+        out.s("=");
+        out.u(u64::from(v));
+    }
+    Ok(())
+}
+
+fn svo(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, .. } = c;
+    let on = pairs(args, flag)?;
+    if ctl.referencing() {
+        return Err(error::CONTROLLER_BUSY);
+    }
+    if ctl.fault().is_none() && ctl.servo() == on {
+        // Already so: nothing to do (servo on again must not re-anchor a moving
+        // slider's reference where it stands).
+        return Ok(());
+    }
+    if ctl.fault().is_some() {
+        // As on PI controllers after a motion error: switching the servo (on or off)
+        // again is the recovery. Check what servo-on needs before clearing.
+        if on {
+            gcs.check_preload(ctl)?;
+        }
+        ctl.clear_fault();
+    }
+    ctl.set_servo(on).map_err(command_error)?;
+    Ok(())
+}
+
+fn ron(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, .. } = c;
+    gcs.reference_mode = pairs(args, flag)?;
+    Ok(())
+}
+
+fn frf(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, .. } = c;
+    for a in args {
+        axis(a)?;
+    }
+    if !gcs.reference_mode {
+        return Err(error::REF_WITH_REF_DISABLED);
+    }
+    ctl.start_referencing().map_err(command_error)?;
+    Ok(())
+}
+
+fn pos(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, .. } = c;
+    // Within the travel limits: beyond them the distance to a later target could
+    // overflow, and the stage cannot be there anyway.
+    let nm = pairs(args, |t| within_travel(ctl, position_nm(t)?))?;
+    if gcs.reference_mode {
+        return Err(error::NOT_ALLOWED);
+    }
+    if ctl.in_motion() {
+        return Err(error::CONTROLLER_BUSY);
+    }
+    ctl.set_reference_here(nm);
+    Ok(())
+}
+
+fn mov(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, .. } = c;
+    // Syntax of every pair, then whether a move is allowed at all, then the limits
+    // of every pair.
+    pairs(args, position_nm)?;
+    gcs.move_allowed(ctl)?;
+    let target = pairs(args, |t| within_travel(ctl, position_nm(t)?))?;
+    ctl.move_to(target).map_err(command_error)?;
+    Ok(())
+}
+
+fn mvr(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, .. } = c;
+    pairs(args, position_nm)?;
+    gcs.move_allowed(ctl)?;
+    let base = ctl.target_nm();
+    let target = pairs(args, |t| {
+        let target = base.checked_add(position_nm(t)?).ok_or(error::POS_OUT_OF_LIMITS)?;
+        within_travel(ctl, target)
+    })?;
+    ctl.move_to(target).map_err(command_error)?;
+    Ok(())
+}
+
+/// `VEL`, `ACC`, `DEC`: one of the closed-loop motion limits, each pair checked as the whole
+/// configuration it would make.
+fn motion_limit(name: &str, c: Call) -> GcsResult {
+    let Call { args, ctl, .. } = c;
+    let bad = if name == "VEL" { error::VEL_OUT_OF_LIMITS } else { error::PARAM_OUT_OF_RANGE };
+    // Each pair's value is checked as the whole configuration it would make.
+    let cfg = pairs(args, |t| {
+        let x = to_f32(&number(t)?).map(|x| x * 1e6).filter(|x| x.is_finite() && *x > 0.0);
+        let x = x.ok_or(bad)?;
+        let mut cfg = *ctl.config();
+        match name {
+            "VEL" => cfg.velocity_max_nm_s = x,
+            "ACC" => cfg.accel_max_nm_s2 = x,
+            _ => cfg.decel_max_nm_s2 = x,
+        }
+        validate_settings(&cfg).map_err(|_| bad)?;
+        Ok(cfg)
+    })?;
+    ctl.set_config(cfg).map_err(|_| bad)?;
+    Ok(())
+}
+
+fn vel(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    motion_limit("VEL", c)
+}
+
+fn acc(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    motion_limit("ACC", c)
+}
+
+fn dec(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    motion_limit("DEC", c)
+}
+
+fn stp(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, .. } = c;
+    no_args(args)?;
+    ctl.stop();
+    Err(error::STOPPED)
+}
+
+fn hlt(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, .. } = c;
+    for a in args {
+        axis(a)?;
+    }
+    ctl.halt();
+    Err(error::STOPPED)
+}
+
+fn spa(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, .. } = c;
+    gcs.spa(args, ctl)?;
+    Ok(())
+}
+
+fn spa_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, out, .. } = c;
+    gcs.spa_query(args, ctl, out)?;
+    Ok(())
+}
+
+fn wpa(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, board, .. } = c;
+    match args {
+        [] => {}
+        [pw] if *pw == b"100" => {}
+        [_] => return Err(error::INVALID_PASSWORD),
+        _ => return Err(error::WRONG_PARAM_COUNT),
+    }
+    // Writing the flash stalls the CPU (about 20 ms on the board): only with the
+    // drive quiet, servo off and nothing moving.
+    if ctl.state() != State::Idle || ctl.servo() || ctl.in_motion() || ctl.referencing() {
+        return Err(error::NOT_ALLOWED);
+    }
+    if !board.store_parameters(ctl.config()) {
+        return Err(error::FLASH_PROGRAM_FAILED);
+    }
+    Ok(())
+}
+
+fn xos(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, ctl, .. } = c;
+    let [a, cycles, amplitude, frequency] = args else {
+        return Err(if args.is_empty() { error::MISSING_PARAM } else { error::WRONG_PARAM_COUNT });
+    };
+    axis(a)?;
+    let cycles = parse_int(cycles).ok_or(error::PARAM_SYNTAX)?;
+    let amplitude = number(amplitude)?;
+    let frequency = number(frequency)?;
+    let cycles = i32::try_from(cycles)
+        .ok()
+        .filter(|c| *c != 0 && c.unsigned_abs() <= 1_000_000)
+        .ok_or(error::PARAM_OUT_OF_RANGE)?;
+    let amplitude = to_f32(&amplitude).ok_or(error::PARAM_OUT_OF_RANGE)?;
+    let frequency = to_f32(&frequency).ok_or(error::PARAM_OUT_OF_RANGE)?;
+    ctl.open_loop_step(cycles, amplitude, frequency).map_err(command_error)?;
+    Ok(())
 }
 
 fn hex(out: &mut Out, v: u32) {
