@@ -2,25 +2,53 @@
 //! `host-sim pil` (the plant) and `tools/pil` (this core on an emulated Cortex-M4F). Both sides
 //! encode and decode with these functions, so they cannot disagree on the layout. Little-endian.
 
-use crate::controller::{FaultCode, Inputs, Outputs, State, DAC_SAMPLES_PER_STEP};
+use crate::controller::{Controller, FaultCode, Inputs, Outputs, State, DAC_SAMPLES_PER_STEP};
 
 /// Host → target: a command for this period (applied before the step) and the sensor inputs.
-pub const TICK_BYTES: usize = 16;
+pub const TICK_BYTES: usize = 20;
 /// Target → host: the outputs, the controller's state, the command's result, instruction counts.
 pub const REPLY_BYTES: usize = 4 * DAC_SAMPLES_PER_STEP + 16;
 
 /// What the host asks of the controller before this period's step.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Command {
     None,
     Servo(bool),
     MoveTo(i64),
     ClearFault,
+    /// Start referencing (GCS `FRF`).
+    Reference,
+    /// Open-loop stepping with the servo off (GCS `XOS`).
+    OpenLoop {
+        cycles: i32,
+        amplitude_v: f32,
+        frequency_hz: f32,
+    },
     /// End of the run: the target exits.
     Exit,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+impl Command {
+    /// Gives the command to a controller, as both the target and the host build do before the
+    /// period's step; true when the controller refuses it. `None` and `Exit` do nothing.
+    pub fn apply(self, ctl: &mut Controller) -> bool {
+        match self {
+            Command::None | Command::Exit => false,
+            Command::Servo(on) => ctl.set_servo(on).is_err(),
+            Command::MoveTo(nm) => ctl.move_to(nm).is_err(),
+            Command::ClearFault => {
+                ctl.clear_fault();
+                false
+            }
+            Command::Reference => ctl.start_referencing().is_err(),
+            Command::OpenLoop { cycles, amplitude_v, frequency_hz } => {
+                ctl.open_loop_step(cycles, amplitude_v, frequency_hz).is_err()
+            }
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Tick {
     pub command: Command,
     pub inputs: Inputs,
@@ -104,12 +132,17 @@ fn get<const N: usize>(buf: &[u8], at: usize) -> [u8; N] {
 
 pub fn encode_tick(t: &Tick) -> [u8; TICK_BYTES] {
     let mut b = [0u8; TICK_BYTES];
-    let (cmd, arg): (u8, i64) = match t.command {
-        Command::None => (0, 0),
-        Command::Servo(on) => (1, i64::from(on)),
-        Command::MoveTo(nm) => (2, nm),
-        Command::ClearFault => (3, 0),
-        Command::Exit => (255, 0),
+    let (cmd, arg, extra): (u8, i64, u32) = match t.command {
+        Command::None => (0, 0, 0),
+        Command::Servo(on) => (1, i64::from(on), 0),
+        Command::MoveTo(nm) => (2, nm, 0),
+        Command::ClearFault => (3, 0, 0),
+        Command::Reference => (4, 0, 0),
+        // Cycles in the low word, the amplitude's bits in the high word, the frequency's after.
+        Command::OpenLoop { cycles, amplitude_v, frequency_hz } => {
+            (5, i64::from(cycles as u32) | (i64::from(amplitude_v.to_bits()) << 32), frequency_hz.to_bits())
+        }
+        Command::Exit => (255, 0, 0),
     };
     let flags = u8::from(t.inputs.index)
         | (u8::from(t.inputs.negative_limit) << 1)
@@ -120,6 +153,7 @@ pub fn encode_tick(t: &Tick) -> [u8; TICK_BYTES] {
     put(&mut b, 4, &t.inputs.preload_word.to_le_bytes());
     put(&mut b, 6, &t.inputs.index_raw.unwrap_or(0).to_le_bytes());
     put(&mut b, 8, &arg.to_le_bytes());
+    put(&mut b, 16, &extra.to_le_bytes());
     b
 }
 
@@ -127,11 +161,18 @@ pub fn encode_tick(t: &Tick) -> [u8; TICK_BYTES] {
 pub fn decode_tick(b: &[u8; TICK_BYTES]) -> Option<Tick> {
     let [cmd, flags] = get::<2>(b, 0);
     let arg = i64::from_le_bytes(get::<8>(b, 8));
+    let extra = u32::from_le_bytes(get::<4>(b, 16));
     let command = match cmd {
         0 => Command::None,
         1 => Command::Servo(arg != 0),
         2 => Command::MoveTo(arg),
         3 => Command::ClearFault,
+        4 => Command::Reference,
+        5 => Command::OpenLoop {
+            cycles: arg as u32 as i32,
+            amplitude_v: f32::from_bits((arg >> 32) as u32),
+            frequency_hz: f32::from_bits(extra),
+        },
         255 => Command::Exit,
         _ => return None,
     };

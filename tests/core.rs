@@ -264,6 +264,8 @@ fn pil_frames_round_trip_and_reject_unknown_commands() {
         Command::Servo(false),
         Command::MoveTo(-123_456_789_012),
         Command::ClearFault,
+        Command::Reference,
+        Command::OpenLoop { cycles: -300, amplitude_v: 80.5, frequency_hz: 1234.5 },
         Command::Exit,
     ] {
         let inputs = Inputs {

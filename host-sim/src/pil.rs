@@ -52,6 +52,11 @@ pub struct PilArgs {
     /// Exit with an error when the tick's instructions exceed these (mean, max).
     #[arg(long, num_args = 2, value_names = ["MEAN", "MAX"])]
     pub budget: Option<Vec<u32>>,
+    /// After the move has settled, also reference on an encoder index 50 µm behind the start
+    /// (GCS `FRF`) and, servo off, step 300 drive cycles open loop back (GCS `XOS`, 80 V,
+    /// 1.5 kHz), so that every state of the tick runs on the target against the plant.
+    #[arg(long)]
+    pub all_states: bool,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
     pub json: bool,
@@ -315,15 +320,7 @@ pub fn run(p: &Params, args: &PilArgs, elf: &Path) -> Result<PilResult> {
     let mut period = |sil: &mut Sil, command: Command, result: &mut PilResult| -> Result<Reply> {
         let inputs = sil.inputs();
         let reply = target.tick(&Tick { command, inputs })?;
-        let host_refused = match command {
-            Command::Servo(on) => sil.controller.set_servo(on).is_err(),
-            Command::MoveTo(nm) => sil.controller.move_to(nm).is_err(),
-            Command::ClearFault => {
-                sil.controller.clear_fault();
-                false
-            }
-            Command::None | Command::Exit => false,
-        };
+        let host_refused = command.apply(&mut sil.controller);
         let host_out = sil.controller.step(&inputs);
         sil.controller.background();
         if host_out != reply.outputs || host_refused != reply.command_refused {
@@ -422,6 +419,34 @@ pub fn run(p: &Params, args: &PilArgs, elf: &Path) -> Result<PilResult> {
             }
         } else {
             inside_since = None;
+        }
+    }
+    if args.all_states && result.fault.is_none() && result.settle_time_s.is_some() {
+        // Referencing: toward −x until the index 50 µm behind the start, then holding there.
+        sil.index_position_m = Some(-50e-6);
+        if period(&mut sil, Command::Reference, &mut result)?.command_refused {
+            bail!("the target refused to reference");
+        }
+        let mut state = pil_wire::state_code(State::Referencing);
+        let t_limit = sil.time_s() + 10.0;
+        while state == pil_wire::state_code(State::Referencing) && sil.time_s() < t_limit {
+            state = period(&mut sil, Command::None, &mut result)?.state;
+        }
+        if state != pil_wire::state_code(State::Holding) {
+            bail!("referencing did not end in holding (state {})", pil_wire::state_name(state));
+        }
+        // Servo off, then open-loop stepping forward.
+        period(&mut sil, Command::Servo(false), &mut result)?;
+        let step = Command::OpenLoop { cycles: 300, amplitude_v: 80.0, frequency_hz: 1500.0 };
+        if period(&mut sil, step, &mut result)?.command_refused {
+            bail!("the target refused open-loop stepping");
+        }
+        let t_limit = sil.time_s() + 1.0;
+        while state != pil_wire::state_code(State::Idle) && sil.time_s() < t_limit {
+            state = period(&mut sil, Command::None, &mut result)?.state;
+        }
+        if state != pil_wire::state_code(State::Idle) {
+            bail!("open-loop stepping did not end (state {})", pil_wire::state_name(state));
         }
     }
     target.finish();

@@ -112,16 +112,10 @@ fn pil(fd_in: usize, fd_out: usize, k: f32) {
             hprintln!("pil: bad frame");
             return;
         };
-        let refused = match tick.command {
-            Command::None => false,
-            Command::Servo(on) => ctl.set_servo(on).is_err(),
-            Command::MoveTo(nm) => ctl.move_to(nm).is_err(),
-            Command::ClearFault => {
-                ctl.clear_fault();
-                false
-            }
-            Command::Exit => return,
-        };
+        if tick.command == Command::Exit {
+            return;
+        }
+        let refused = tick.command.apply(&mut ctl);
         let mut out = None;
         let mut step_counts = 0;
         let tick_counts = counts(|| {
