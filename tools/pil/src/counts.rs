@@ -98,7 +98,7 @@ pub fn hot_paths() {
     // The states the PIL moves do not visit: referencing (an index search that finds nothing
     // within these periods) and open-loop stepping (servo off, XOS), the tick counted as PIL
     // counts it: the step plus packing the half-buffer.
-    let mut tick_of = |ctl: &mut Controller, inputs: &Inputs| {
+    let tick_of = |ctl: &mut Controller, inputs: &Inputs| {
         let c = counts(|| {
             let out = ctl.step(core::hint::black_box(inputs));
             for (j, s) in out.dac.iter().enumerate() {
