@@ -112,14 +112,7 @@ impl Controller {
             return;
         }
         if matches!(self.state(), State::Holding | State::Referencing | State::OpenLoop) {
-            let here = self.position_nm();
-            self.profile.reset(here);
-            if self.servo {
-                self.enter_hold();
-            } else {
-                self.activity = Activity::Idle;
-                self.generator.ramp_to_quiet();
-            }
+            self.hold_here_or_quiet();
         }
     }
 

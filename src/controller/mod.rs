@@ -359,6 +359,18 @@ impl Controller {
         self.on_target_s = 0.0;
     }
 
+    /// The reference where the slider is, then holding there with the servo on, else quiet.
+    fn hold_here_or_quiet(&mut self) {
+        let here = self.position_nm();
+        self.profile.reset(here);
+        if self.servo {
+            self.enter_hold();
+        } else {
+            self.activity = Activity::Idle;
+            self.generator.ramp_to_quiet();
+        }
+    }
+
     /// One control period.
     pub fn step(&mut self, inputs: &Inputs) -> Outputs {
         self.tick = self.tick.wrapping_add(1);

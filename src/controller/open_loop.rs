@@ -34,13 +34,6 @@ impl Controller {
     pub(super) fn end_open_loop_motion(&mut self) {
         self.generator.set_amplitude_v(0.0);
         self.drive_v = 0.0;
-        let here = self.position_nm();
-        self.profile.reset(here);
-        if self.servo {
-            self.enter_hold();
-        } else {
-            self.activity = Activity::Idle;
-            self.generator.ramp_to_quiet();
-        }
+        self.hold_here_or_quiet();
     }
 }
