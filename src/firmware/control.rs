@@ -51,7 +51,8 @@ use piezo_drive::safety::soft_start::SoftStart;
 use piezo_drive::safety::timing::{DeadlineMonitor, LeakyBucket, OverrunSupervisor};
 
 use super::drive::Drive;
-use super::encoder::Encoder;
+use super::encoder::{Encoder, INDEX_LATCH};
+use super::preload::PRELOAD_WORD;
 use super::ring;
 use super::{AMP_REST_WORD, CORE_HZ, SAMPLE_COUNTS, SOFT_START_SAMPLES, TICK_COUNTS};
 
@@ -107,16 +108,10 @@ impl<T> TickLock<T> {
 
 /// The controller, shared by the tick (every 100 µs) and the UART task (per command).
 pub static CONTROLLER: TickLock<Option<Controller>> = TickLock::new(None);
-/// Latest preload-cell word from the ADC task: the word in the low 16 bits, a sample counter in
-/// the high 16 (so the tick sees when the task stops delivering).
-pub static PRELOAD_WORD: AtomicU32 = AtomicU32::new(0);
 /// Ticks without a new preload sample after which the tick hands the core an invalid word
 /// (20 ms, twenty missed 1 kHz samples): a stuck ADC task becomes the core's preload-sensor fault
 /// instead of a frozen force reading, while the watchdogs only watch the tick.
 const PRELOAD_STALE_TICKS: u32 = 200;
-/// Index latch written by the EXTI handler (`encoder.rs`): the encoder count at the edge in the
-/// low 16 bits, an edge counter in the high 16.
-pub static INDEX_LATCH: AtomicU32 = AtomicU32::new(0);
 
 /// Drive parking, for the flash store (`params_flash.rs`): while `PARK_REQUEST` is set the tick
 /// keeps the enable low and writes rest words; `PARKED_TICKS` counts the ticks it has done so.

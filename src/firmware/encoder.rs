@@ -3,11 +3,11 @@
 //!
 //! The optional index on PB10: EXTI line 10, rising edge, our own `EXTI15_10` handler at
 //! priority 0 (above the tick) latches TIM3's count at the edge into
-//! [`super::control::INDEX_LATCH`]; the tick hands it to the core (`Inputs::index_raw`), which
+//! [`INDEX_LATCH`]; the tick hands it to the core (`Inputs::index_raw`), which
 //! references on the edge itself. (Earlier an embassy EXTI task in thread mode flagged the edge,
 //! up to a long command late.) embassy's `exti` feature is off so that the vector is ours.
 
-use core::sync::atomic::Ordering;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use embassy_stm32::gpio::{Input, Pull};
 use embassy_stm32::interrupt;
@@ -17,7 +17,11 @@ use embassy_stm32::peripherals::{PA6, PA7, PB10, TIM3};
 use embassy_stm32::timer::qei::{Qei, QeiPin};
 use embassy_stm32::Peri;
 
-use super::control::INDEX_LATCH;
+/// Index latch, written by the EXTI handler below and read by the tick (`control.rs`): the
+/// encoder count at the edge in the low 16 bits, an edge counter in the high 16. The producer
+/// owns its mailbox.
+pub static INDEX_LATCH: AtomicU32 = AtomicU32::new(0);
+
 
 /// Input filter on both channels: 8 equal samples at f_DTS/2 = 85 MHz (≈ 94 ns), which rejects
 /// ringing on long encoder cables and still passes edges 2 MHz apart (50 nm counts at 100 mm/s).

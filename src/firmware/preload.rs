@@ -10,7 +10,7 @@
 //! [`FLOATING_WORD`], outside the ADC's range, which the core treats as an invalid preload
 //! (a preload-sensor fault while active; servo-on refused).
 
-use core::sync::atomic::Ordering;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use embassy_stm32::adc::{Adc, AdcChannel, AnyAdcChannel, Resolution, SampleTime};
 use embassy_stm32::pac;
@@ -21,7 +21,10 @@ use embassy_stm32::Peri;
 use embassy_time::{Duration, Ticker, Timer};
 use piezo_drive::safety::probe::{probe_says_floating, FloatDetector};
 
-use super::control::PRELOAD_WORD;
+/// Latest preload-cell word from this task, read by the tick (`control.rs`): the word in the low
+/// 16 bits, a sample counter in the high 16 (so the tick sees when the task stops delivering).
+pub static PRELOAD_WORD: AtomicU32 = AtomicU32::new(0);
+
 
 /// Preload sampling period: the core filters the word (α = 0.01 per 100 µs tick), so 1 kHz is
 /// ten times faster than anything the filter passes.
