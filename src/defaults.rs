@@ -15,8 +15,6 @@ use crate::Fx;
 pub const DAC_RATE_HZ: u32 = 200_000;
 /// Control loop rate: one controller step per [`DAC_SAMPLES_PER_STEP`] DAC samples.
 pub const LOOP_HZ: u32 = DAC_RATE_HZ / DAC_SAMPLES_PER_STEP as u32;
-/// Drive frequency of the coarse mode (Hz): the top of the band gives the highest speed.
-pub const DRIVE_FREQ_HZ: f32 = 2200.0;
 
 /// Highest preload at which the drive still lifts the foot off at full voltage: above it the
 /// foot never leaves the slider and the motor blocks (physics.md §2).

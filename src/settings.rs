@@ -18,7 +18,6 @@
 //! bump [`crate::storage::VERSION`] and keep a decoder for the previous layout (see `storage`).
 
 use crate::controller::{ControllerConfig, ReferenceSignal, MAX_TRAVEL_NM};
-use crate::defaults::DRIVE_FREQ_HZ;
 
 /// A setting's value in its field's own type, widened: f32 fields as `F32`, every integer field
 /// (u16, u32, i32, i64, bool as 0/1, an enum as its code) as `Int`.
@@ -343,7 +342,7 @@ settings! {
     (0x3F, "Servo", settle_time_s: f32 = 0.01;
         "s", 1.0, NON_NEGATIVE, Stored, "Settling time"),
     // The top of the band gives the highest speed; the DAC's band is checked too.
-    (0x1001, "Drive", drive_freq_hz: f32 = DRIVE_FREQ_HZ;
+    (0x1001, "Drive", drive_freq_hz: f32 = 2200.0;
         "Hz", 1.0, POSITIVE, Stored, "Drive frequency of coarse motion"),
     (0x1002, "Drive", max_drive_v: f32 = hardware("the amplifier's output range");
         "V peak-to-peak", 1.0, POSITIVE, Stored, "Maximum drive amplitude"),

@@ -6,7 +6,7 @@
 
 use anyhow::{bail, Context, Result};
 
-use crate::effects::Effects;
+use crate::effects::config::Effects;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 

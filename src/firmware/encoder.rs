@@ -22,7 +22,6 @@ use embassy_stm32::Peri;
 /// owns its mailbox.
 pub static INDEX_LATCH: AtomicU32 = AtomicU32::new(0);
 
-
 /// Input filter on both channels: 8 equal samples at f_DTS/2 = 85 MHz (≈ 94 ns), which rejects
 /// ringing on long encoder cables and still passes edges 2 MHz apart (50 nm counts at 100 mm/s).
 const FILTER: pac::timer::vals::FilterValue = pac::timer::vals::FilterValue::FDTS_DIV2_N8;

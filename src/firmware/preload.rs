@@ -25,7 +25,6 @@ use piezo_drive::safety::probe::{probe_says_floating, FloatDetector};
 /// 16 bits, a sample counter in the high 16 (so the tick sees when the task stops delivering).
 pub static PRELOAD_WORD: AtomicU32 = AtomicU32::new(0);
 
-
 /// Preload sampling period: the core filters the word (α = 0.01 per 100 µs tick), so 1 kHz is
 /// ten times faster than anything the filter passes.
 const PERIOD: Duration = Duration::from_millis(1);
