@@ -185,7 +185,7 @@ mod board {
                 let s = control::loop_stats();
                 defmt::info!(
                     "ticks {} step cycles last {} max {} late ticks {} overrun trips {} worst latency {}",
-                    control::ticks(),
+                    safety::ticks(),
                     s.step_cycles_last,
                     s.step_cycles_max,
                     s.overruns,

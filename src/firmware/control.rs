@@ -121,7 +121,6 @@ pub static PARKED_TICKS: AtomicU32 = AtomicU32::new(0);
 static STEP_CYCLES_LAST: AtomicU32 = AtomicU32::new(0);
 static STEP_CYCLES_MAX: AtomicU32 = AtomicU32::new(0);
 static OVERRUNS: AtomicU32 = AtomicU32::new(0);
-static TICKS: AtomicU32 = AtomicU32::new(0);
 /// Times the overrun bucket tripped (each one latched an `Overrun` fault).
 pub static OVERRUN_TRIPS: AtomicU32 = AtomicU32::new(0);
 /// Largest tick start latency seen, in 170 MHz counts.
@@ -198,10 +197,6 @@ pub fn loop_stats() -> LoopStats {
         overruns: OVERRUNS.load(Ordering::Relaxed),
         core_clock_hz: CORE_HZ,
     }
-}
-
-pub fn ticks() -> u32 {
-    TICKS.load(Ordering::Relaxed)
 }
 
 /// Installs the controller.
@@ -372,7 +367,7 @@ fn TIM7_DAC() {
     if cycles > STEP_CYCLES_MAX.load(Ordering::Relaxed) {
         STEP_CYCLES_MAX.store(cycles, Ordering::Relaxed);
     }
-    bump(&TICKS);
+    super::safety::count_tick();
 
     // 4. Watchdogs: only an on-time tick feeds them.
     if verdict.feed_watchdogs {

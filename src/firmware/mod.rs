@@ -32,6 +32,8 @@ pub mod control;
 pub mod drive_dac;
 #[cfg(target_os = "none")]
 pub mod model;
+#[cfg(target_os = "none")]
+pub mod param_page;
 #[cfg(all(target_os = "none", feature = "dac-drive"))]
 pub use drive_dac as drive;
 #[cfg(all(target_os = "none", feature = "pwm-drive", not(feature = "dac-drive")))]

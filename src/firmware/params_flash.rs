@@ -15,7 +15,7 @@
 //!
 //! Reading at boot: a power cut during a store can leave a torn page whose words carry a double
 //! ECC error, which raises an NMI on the read. The NMI handler (`safety.rs`) asks
-//! [`ecc_error_while_reading`] whether the error lies in this page during a read; if so it clears
+//! [`param_page::ecc_error_while_reading`] whether the error lies in this page during a read; if so it clears
 //! the flag and returns, the read reports [`ReadError::Ecc`] and the boot code erases the page
 //! and runs on defaults. The independent watchdog is already running by then.
 //!
@@ -23,7 +23,7 @@
 //! firmware skips the flash, runs on defaults and refuses `WPA` (the README says how to set
 //! DBANK back).
 
-use core::sync::atomic::{AtomicBool, AtomicU8, Ordering};
+use core::sync::atomic::{AtomicU8, Ordering};
 
 use embassy_stm32::pac;
 use embassy_stm32::peripherals::FLASH;
@@ -32,17 +32,11 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Timer};
 use piezo_drive::controller::ControllerConfig;
-use piezo_drive::safety::flash_ecc::ecc_in_param_page;
 use piezo_drive::storage::{self, StorageError, RECORD_LEN};
 
 use super::control::{PARKED_TICKS, PARK_REQUEST};
+use super::param_page::{self, BANK2_OFFSET, FLASH_BASE, PARAM_OFFSET, PARAM_PAGE_SIZE};
 
-/// Offset of the parameter page from the start of flash (0x0800_0000).
-pub const PARAM_OFFSET: u32 = 0x7_F800;
-pub const PARAM_PAGE_SIZE: u32 = 2048;
-const FLASH_BASE: u32 = 0x0800_0000;
-/// Bank 2 starts half-way through the 512 KiB in dual-bank mode.
-const BANK2_OFFSET: u32 = 0x4_0000;
 /// The page within bank 2 (erase page number, PNB with BKER = 1).
 const PARAM_PAGE_IN_BANK: u8 = ((PARAM_OFFSET - BANK2_OFFSET) / PARAM_PAGE_SIZE) as u8;
 /// Flash write unit (a double word).
@@ -61,21 +55,6 @@ static REQUEST: Signal<CriticalSectionRawMutex, [u8; RECORD_LEN]> = Signal::new(
 
 /// Last store: 0 none yet, 1 queued, 2 written and verified, 3 failed, 4 flash unavailable.
 pub static STORE_STATE: AtomicU8 = AtomicU8::new(0);
-
-/// A read of the parameter page is under way / hit a double ECC error (set by the NMI).
-static READING: AtomicBool = AtomicBool::new(false);
-static ECC_HIT: AtomicBool = AtomicBool::new(false);
-
-/// For the NMI handler: whether a double ECC error at (`bank2`, `addr_in_bank`) is one of ours —
-/// in the parameter page while it is being read — and so survivable. Records it for the reader.
-pub fn ecc_error_while_reading(bank2: bool, addr_in_bank: u32) -> bool {
-    let ours = READING.load(Ordering::Relaxed)
-        && ecc_in_param_page(bank2, addr_in_bank, PARAM_OFFSET, BANK2_OFFSET, PARAM_PAGE_SIZE);
-    if ours {
-        ECC_HIT.store(true, Ordering::Relaxed);
-    }
-    ours
-}
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum FlashError {
@@ -148,16 +127,14 @@ fn flush_data_cache() {
 impl ParamFlash {
     /// Reads the start of the page. A double ECC error in it is reported, not fatal.
     pub fn read(&mut self, buf: &mut [u8]) -> Result<(), ReadError> {
-        ECC_HIT.store(false, Ordering::Relaxed);
-        READING.store(true, Ordering::SeqCst);
         let base = (FLASH_BASE + PARAM_OFFSET) as *const u8;
-        for (i, b) in buf.iter_mut().take(PARAM_PAGE_SIZE as usize).enumerate() {
-            // SAFETY: inside the 2 KiB parameter page, memory-mapped flash.
-            *b = unsafe { base.add(i).read_volatile() };
-        }
-        cortex_m::asm::dsb();
-        READING.store(false, Ordering::SeqCst);
-        if ECC_HIT.load(Ordering::Relaxed) {
+        let ecc_hit = param_page::guarded_read(|| {
+            for (i, b) in buf.iter_mut().take(PARAM_PAGE_SIZE as usize).enumerate() {
+                // SAFETY: inside the 2 KiB parameter page, memory-mapped flash.
+                *b = unsafe { base.add(i).read_volatile() };
+            }
+        });
+        if ecc_hit {
             Err(ReadError::Ecc)
         } else {
             Ok(())

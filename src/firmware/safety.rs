@@ -20,6 +20,7 @@
 //! and is logged at the next boot.
 
 use core::mem::MaybeUninit;
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m::peripheral::SCB;
 use embassy_stm32::interrupt;
@@ -52,6 +53,19 @@ pub fn feed_independent_watchdog() {
 }
 
 static mut WWDG_RELOAD: u8 = watchdog::MAX_COUNT;
+
+/// Control ticks since boot (wraps): the clock of the fault record, counted by the tick.
+static TICKS: AtomicU32 = AtomicU32::new(0);
+
+/// Called once per control tick (`control.rs`).
+pub fn count_tick() {
+    TICKS.store(TICKS.load(Ordering::Relaxed).wrapping_add(1), Ordering::Relaxed);
+}
+
+/// Control ticks since boot.
+pub fn ticks() -> u32 {
+    TICKS.load(Ordering::Relaxed)
+}
 
 /// Reloads both watchdogs (the WWDG only once started).
 pub fn feed_watchdogs() {
@@ -102,7 +116,7 @@ pub fn start_window_watchdog() {
 fn WWDG() {
     force_safe();
     pac::WWDG.sr().write(|w| w.set_ewif(false));
-    record_fault(FaultKind::WindowWatchdog, [super::control::ticks(), 0, 0, 0, 0, 0, 0, 0]);
+    record_fault(FaultKind::WindowWatchdog, [ticks(), 0, 0, 0, 0, 0, 0, 0]);
     // The reset follows within one counter step (24 µs); no logging, no feeding.
     loop {
         force_safe();
@@ -162,8 +176,7 @@ fn record_ptr() -> *mut u32 {
 
 /// Stores a fault record (any context; the last writer wins).
 pub fn record_fault(kind: FaultKind, detail: [u32; DETAIL_WORDS]) {
-    let words =
-        fault_record::encode(&FaultRecord { kind, boots_seen: 0, tick: super::control::ticks(), detail });
+    let words = fault_record::encode(&FaultRecord { kind, boots_seen: 0, tick: ticks(), detail });
     for (i, w) in words.iter().enumerate() {
         // SAFETY: i < RECORD_WORDS; plain RAM words, written volatile so a reset right after
         // finds them.
@@ -231,7 +244,7 @@ unsafe fn NonMaskableInt() {
         clear.set_eccc(false);
         clear.set_eccd(true);
         pac::FLASH.eccr().write_value(clear);
-        if super::params_flash::ecc_error_while_reading(eccr.bk_ecc(), eccr.addr_ecc()) {
+        if super::param_page::ecc_error_while_reading(eccr.bk_ecc(), eccr.addr_ecc()) {
             // A torn parameter page: the reader treats the page as absent and erases it.
             return;
         }
