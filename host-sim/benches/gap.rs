@@ -2,9 +2,9 @@
 //! (`cargo bench -p host-sim --bench gap`). Not a criterion bench: one run of the workflow takes
 //! seconds, and the figure the issue asks for is its absolute wall time.
 
+use host_sim::gap::measure::{synthesize, Grid};
 use host_sim::gap::{analyze, Options};
-use host_sim::measure::{synthesize, Grid};
-use host_sim::params::Params;
+use host_sim::motor::params::Params;
 use std::time::Instant;
 
 fn main() {

@@ -5,9 +5,9 @@
 //! `steady/thrust_n` reports thrust evaluations per second.
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
-use host_sim::params::Params;
-use host_sim::plant::{Plant, QuadratureSine};
-use host_sim::steady::{OperatingPoint, ThrustModel};
+use host_sim::motor::params::Params;
+use host_sim::motor::plant::{Plant, QuadratureSine};
+use host_sim::motor::steady::{OperatingPoint, ThrustModel};
 
 fn plant(c: &mut Criterion) {
     let p = Params::prototype();
@@ -62,7 +62,7 @@ fn steady(c: &mut Criterion) {
     // The model with a 0.3 kg slider's inertia: one periodic orbit (bisection on the start speed).
     let mut light = p.clone();
     light.slider.mass_kg = 0.3;
-    let im = host_sim::steady_inertia::InertialModel::new(
+    let im = host_sim::motor::steady_inertia::InertialModel::new(
         &light,
         OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 },
     );
@@ -73,8 +73,8 @@ fn steady(c: &mut Criterion) {
 /// One `Controller::step` (the firmware's 10 kHz entry) while moving, and the fixed-point model
 /// against the f64 model on the same point.
 fn core(c: &mut Criterion) {
-    use host_sim::moves::ready_board;
-    use host_sim::sil::{controller_config, motor_constants};
+    use host_sim::harness::moves::ready_board;
+    use host_sim::harness::sil::{controller_config, motor_constants};
     use piezo_drive::Fx;
     let p = Params::prototype();
     let mut sil = ready_board(&p, controller_config(&p), 16.0).expect("board");

@@ -1,10 +1,10 @@
 //! Thrust–velocity characteristic: steady-state model and time-domain plant side by side.
 
 use crate::check::ser;
-use crate::params::Params;
-use crate::plant::steady_speed_m_s;
-use crate::steady::{OperatingPoint, ThrustModel};
-use crate::steady_inertia::InertialModel;
+use crate::motor::params::Params;
+use crate::motor::plant::steady_speed_m_s;
+use crate::motor::steady::{OperatingPoint, ThrustModel};
+use crate::motor::steady_inertia::InertialModel;
 use serde::Serialize;
 
 /// JSON values are rounded to what they resolve: forces to 1e-4 N, speeds to 1 nm/s, angles to

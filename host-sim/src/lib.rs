@@ -1,24 +1,21 @@
 //! host-sim: the physical plant of the shaking-beam piezo motor, its steady-state thrust model,
-//! and the command-line tools around them.
-pub mod characterize;
+//! and the command-line tools around them. One folder per job:
+//! - [`motor`]: the motor models (parameters, time-domain plant, steady-state models, effects);
+//! - [`harness`]: the loops that run the firmware's control core against the plant (SIL, the
+//!   moves and the demo, PIL on the emulated Cortex-M4F);
+//! - [`virtual_controller`]: the board over GCS (`serve`), its client and the characterisation
+//!   that drives a board over it;
+//! - [`gap`]: the model-gap workflow (measured data, calibration, named effects);
+//! - and beside them the figures and command-line checks (`curve`, `paper`, `trace`, `plot`, …).
+pub mod gap;
+pub mod harness;
+pub mod motor;
+pub mod virtual_controller;
+
 pub mod check;
 pub mod curve;
-pub mod effects;
-pub mod gap;
-pub mod gcs_client;
-pub mod measure;
-pub mod measured_csv;
-pub mod moves;
 pub mod paper;
-pub mod params;
-pub mod pil;
-pub mod plant;
 pub mod plant_figures;
 pub mod plot;
 pub mod readme_figures;
-pub mod roots;
-pub mod serve;
-pub mod sil;
-pub mod steady;
-pub mod steady_inertia;
 pub mod trace;

@@ -2,9 +2,10 @@
 
 use anyhow::{bail, Result};
 use clap::{Parser, Subcommand};
-use host_sim::params::{FrictionModel, Params};
-use host_sim::steady::OperatingPoint;
-use host_sim::{check, curve, moves, paper, plot};
+use host_sim::harness::moves;
+use host_sim::motor::params::{FrictionModel, Params};
+use host_sim::motor::steady::OperatingPoint;
+use host_sim::{check, curve, paper, plot};
 use std::io::Write;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -108,7 +109,7 @@ enum Command {
     /// Processor in the loop: one closed-loop move with the control core running on an emulated
     /// Cortex-M4F (QEMU) against the plant; instruction counts per tick and per state, and every
     /// period whose outputs differ from the host build's.
-    Pil(host_sim::pil::PilArgs),
+    Pil(host_sim::harness::pil::PilArgs),
     /// Regenerate every figure in docs/ and every table of the README from the code (the README's
     /// marked tables are rewritten in place); `--check` compares instead and fails on drift.
     ReadmeFigures(host_sim::readme_figures::ReadmeFiguresArgs),
@@ -117,14 +118,14 @@ enum Command {
     FirmwareTable,
     /// The virtual controller: the core against the plant in real time, speaking PI GCS 2.0 over
     /// TCP or a pty (see the README's UART commands section).
-    Serve(host_sim::serve::ServeArgs),
+    Serve(host_sim::virtual_controller::serve::ServeArgs),
     /// Model-gap workflow: calibrate to measured speeds, name the missing effects, report.
     Gap(host_sim::gap::GapArgs),
     /// Synthetic measured data from the plant with hidden effects (the gap workflow's input).
-    Measure(host_sim::measure::MeasureArgs),
+    Measure(host_sim::gap::measure::MeasureArgs),
     /// A board (or `serve`) measures its own thrust–speed points over GCS: open-loop bursts,
     /// written as the gap workflow's CSV.
-    Characterize(host_sim::characterize::CharacterizeArgs),
+    Characterize(host_sim::virtual_controller::characterize::CharacterizeArgs),
 }
 
 #[derive(clap::Args)]
@@ -412,13 +413,13 @@ fn run(cli: Cli) -> Result<()> {
             }
         }
         Command::Pil(args) => {
-            host_sim::pil::validate(&args)?;
+            host_sim::harness::pil::validate(&args)?;
             let elf = match &args.elf {
                 Some(path) => path.clone(),
-                None => host_sim::pil::build_target(&mut |what| eprintln!("pil: {what}..."))?,
+                None => host_sim::harness::pil::build_target(&mut |what| eprintln!("pil: {what}..."))?,
             };
             eprintln!("pil: running the move with the core on the emulated Cortex-M4F...");
-            let r = host_sim::pil::run(&params, &args, &elf)?;
+            let r = host_sim::harness::pil::run(&params, &args, &elf)?;
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&r)?);
             } else {
@@ -471,8 +472,8 @@ fn run(cli: Cli) -> Result<()> {
             }
         }
         Command::Gap(args) => host_sim::gap::run(args, &params)?,
-        Command::Measure(args) => host_sim::measure::run(args, &params)?,
-        Command::Characterize(args) => host_sim::characterize::run(&args)?,
+        Command::Measure(args) => host_sim::gap::measure::run(args, &params)?,
+        Command::Characterize(args) => host_sim::virtual_controller::characterize::run(&args)?,
         Command::Demo { plot: plot_path } => {
             check::output_file("--plot", &plot_path)?;
             println!("Shaking-beam piezo motor, closed loop: the firmware's controller against the plant");
@@ -510,14 +511,14 @@ fn run(cli: Cli) -> Result<()> {
             let c = curve::compute(&params, op, 1, 6, 0.9, progress("curve"));
             print_curve(&c);
         }
-        Command::Serve(args) => host_sim::serve::run(&params, &args)?,
+        Command::Serve(args) => host_sim::virtual_controller::serve::run(&params, &args)?,
         Command::ReadmeFigures(args) => host_sim::readme_figures::run(&args)?,
         Command::FirmwareTable => {
             let source = cli.params.as_ref().map_or_else(
                 || "host-sim/params/prototype.toml".to_string(),
                 |path| path.display().to_string(),
             );
-            print!("{}", host_sim::sil::motor_table_source(&params, &source));
+            print!("{}", host_sim::harness::sil::motor_table_source(&params, &source));
         }
     }
     Ok(())

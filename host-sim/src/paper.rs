@@ -1,9 +1,9 @@
 //! The figures of physics.md §5 that the model must reproduce, evaluated on a parameter set.
 
-use crate::params::Params;
-use crate::plant::{stator_modes_hz, steady_speed_m_s};
+use crate::motor::params::Params;
+use crate::motor::plant::{stator_modes_hz, steady_speed_m_s};
+use crate::motor::steady::{amplitudes, OperatingPoint, ThrustModel};
 use crate::plant_figures;
-use crate::steady::{amplitudes, OperatingPoint, ThrustModel};
 use serde::Serialize;
 
 #[derive(Debug, Clone, Serialize)]

@@ -2,9 +2,9 @@
 //! share of the period in contact, stall force. `paper` prints them beside the steady-state
 //! model's values.
 
-use crate::params::Params;
-use crate::plant::{steady_speed_m_s, Plant, QuadratureSine};
-use crate::steady::OperatingPoint;
+use crate::motor::params::Params;
+use crate::motor::plant::{steady_speed_m_s, Plant, QuadratureSine};
+use crate::motor::steady::OperatingPoint;
 
 fn drive(p: &Params, voltage_v: f64, frequency_hz: f64) -> QuadratureSine {
     QuadratureSine { voltage_v, frequency_hz, direction: 1, mid_v: p.amplifier_mid_v(), ramp_s: 0.005 }

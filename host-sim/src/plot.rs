@@ -68,7 +68,7 @@ pub fn thrust_velocity(curve: &Curve, path: &Path) -> Result<()> {
 }
 
 /// Position and reference against time (µm vs s), and the drive voltage on a second panel.
-pub fn motion(trace: &[crate::moves::TracePoint], title: &str, path: &Path) -> Result<()> {
+pub fn motion(trace: &[crate::harness::moves::TracePoint], title: &str, path: &Path) -> Result<()> {
     let root = SVGBackend::new(path, (900, 640)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| anyhow!("plot: {e}"))?;
     let (upper, lower) = root.split_vertically(440);

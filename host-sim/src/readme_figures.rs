@@ -7,9 +7,11 @@
 //! last printed digit or 1 %, whichever is larger; a figure must have the same SVG elements and
 //! text, every number in it (coordinates in pixels, tick labels) within 2.
 
-use crate::params::Params;
-use crate::steady::{OperatingPoint, ThrustModel};
-use crate::{curve, gap, measured_csv, moves, plot, trace};
+use crate::gap::measured_csv;
+use crate::harness::moves;
+use crate::motor::params::Params;
+use crate::motor::steady::{OperatingPoint, ThrustModel};
+use crate::{curve, gap, plot, trace};
 use anyhow::{bail, Context, Result};
 use piezo_drive::settings::{DefaultValue, Keep, Range, Setting, Ty, Value, SETTINGS};
 use rayon::prelude::*;
@@ -108,7 +110,7 @@ fn paper_masses_table(p: &Params) -> String {
         .map(|&(m, f)| {
             let mut q = p.clone();
             q.slider.mass_kg = m;
-            let plant = crate::plant::steady_speed_m_s(&q, 16.0, 100.0, f, 1, 0.0) * 1e3;
+            let plant = crate::motor::plant::steady_speed_m_s(&q, 16.0, 100.0, f, 1, 0.0) * 1e3;
             let op = OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: f };
             let model = ThrustModel::new(&q, op).no_load_speed_m_s() * 1e3;
             (plant, model)

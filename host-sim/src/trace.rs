@@ -2,9 +2,9 @@
 //! contact carries and how the slider answers. The evidence for what a light carriage does
 //! differently from a heavy one (README, "Light carriages").
 
-use crate::params::Params;
-use crate::plant::{ExternalLoad, Plant, QuadratureSine};
-use crate::steady::OperatingPoint;
+use crate::motor::params::Params;
+use crate::motor::plant::{ExternalLoad, Plant, QuadratureSine};
+use crate::motor::steady::OperatingPoint;
 use serde::Serialize;
 
 /// One sample of the period.
@@ -78,7 +78,7 @@ pub fn one_period(p: &Params, op: OperatingPoint, load_n: f64, samples: usize) -
     let (mut contact_steps, mut stick_steps) = (0usize, 0usize);
     // Stick: slider and foot move together to within 1 % of the foot's peak speed.
     let stick_band_m_s = 0.01
-        * crate::steady::amplitudes(p, op.voltage_v, op.frequency_hz).xc_m
+        * crate::motor::steady::amplitudes(p, op.voltage_v, op.frequency_hz).xc_m
         * std::f64::consts::TAU
         * op.frequency_hz;
     for i in 0..steps {

@@ -2,8 +2,8 @@
 //! give what the plant gives (`host-sim measure`, noiseless, same operating points), stay inside
 //! the travel range, and refuse what it cannot do before moving anything.
 
-use host_sim::gcs_client::GcsClient;
-use host_sim::measured_csv;
+use host_sim::gap::measured_csv;
+use host_sim::virtual_controller::gcs_client::GcsClient;
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
 

@@ -30,7 +30,7 @@ fn bad_input_gets_a_one_line_error_and_a_non_zero_exit() {
     std::fs::write(&bad, "[stack]\nstroke_m_per_v = 'lots'\n").unwrap();
     assert_one_line_error(&["--params", bad.to_str().unwrap(), "paper"], "bad.toml");
     let negative = dir.join("negative.toml");
-    let text = host_sim::params::PROTOTYPE_TOML.replace("mass_kg = 50.0", "mass_kg = -1.0");
+    let text = host_sim::motor::params::PROTOTYPE_TOML.replace("mass_kg = 50.0", "mass_kg = -1.0");
     std::fs::write(&negative, text).unwrap();
     assert_one_line_error(&["--params", negative.to_str().unwrap(), "paper"], "slider.mass_kg");
 }
@@ -100,11 +100,11 @@ fn paper_json_lists_every_row_with_pass() {
 
 #[test]
 fn the_shipped_parameter_file_round_trips() {
-    let p = host_sim::params::Params::prototype();
-    let again = host_sim::params::Params::from_toml(&p.to_toml()).unwrap();
+    let p = host_sim::motor::params::Params::prototype();
+    let again = host_sim::motor::params::Params::from_toml(&p.to_toml()).unwrap();
     assert_eq!(p, again);
-    let unknown = format!("{}\n[extra]\nx = 1\n", host_sim::params::PROTOTYPE_TOML);
-    assert!(host_sim::params::Params::from_toml(&unknown).is_err());
+    let unknown = format!("{}\n[extra]\nx = 1\n", host_sim::motor::params::PROTOTYPE_TOML);
+    assert!(host_sim::motor::params::Params::from_toml(&unknown).is_err());
 }
 
 #[test]

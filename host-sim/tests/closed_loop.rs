@@ -1,11 +1,11 @@
 //! The firmware's controller in the loop with the plant (10 kHz control, 12-bit DAC, 16-bit
 //! encoder counter, one-period output delay), against physical limits.
 
-use host_sim::moves::{ready_board, run_move, single_move, MoveSpec};
-use host_sim::params::Params;
-use host_sim::plant::ExternalLoad;
-use host_sim::sil::{controller_config, Sil};
-use host_sim::steady::{OperatingPoint, ThrustModel};
+use host_sim::harness::moves::{ready_board, run_move, single_move, MoveSpec};
+use host_sim::harness::sil::{controller_config, Sil};
+use host_sim::motor::params::Params;
+use host_sim::motor::plant::ExternalLoad;
+use host_sim::motor::steady::{OperatingPoint, ThrustModel};
 use piezo_drive::controller::{CommandError, FaultCode, State};
 
 fn board(preload_n: f64) -> (Params, Sil) {

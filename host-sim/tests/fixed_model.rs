@@ -1,9 +1,9 @@
 //! The firmware's fixed-point thrust model against host-sim's f64 model (the same equations):
 //! within 1 % of the stall force over the operating grid, both directions.
 
-use host_sim::params::Params;
-use host_sim::sil::motor_constants;
-use host_sim::steady::{thrust_n, OperatingPoint, ThrustModel};
+use host_sim::harness::sil::motor_constants;
+use host_sim::motor::params::Params;
+use host_sim::motor::steady::{thrust_n, OperatingPoint, ThrustModel};
 use piezo_drive::Fx;
 
 #[test]
@@ -82,14 +82,15 @@ fn inverse_model_returns_the_voltage_that_gives_the_wanted_speed() {
 #[test]
 fn the_baked_motor_table_matches_the_prototype_parameter_file() {
     let committed = include_str!("../../src/motor_table.rs");
-    let generated = host_sim::sil::motor_table_source(&Params::prototype(), "host-sim/params/prototype.toml");
+    let generated =
+        host_sim::harness::sil::motor_table_source(&Params::prototype(), "host-sim/params/prototype.toml");
     assert!(
         committed == generated,
         "src/motor_table.rs is stale: run `cargo run -p host-sim -- firmware-table > src/motor_table.rs`"
     );
     assert_eq!(
         piezo_drive::motor_table::PROTOTYPE_MOTOR,
-        host_sim::sil::motor_constants(&Params::prototype())
+        host_sim::harness::sil::motor_constants(&Params::prototype())
     );
 }
 
@@ -99,7 +100,7 @@ fn the_baked_motor_table_matches_the_prototype_parameter_file() {
 fn firmware_defaults_equal_the_simulated_board() {
     assert_eq!(
         piezo_drive::defaults::controller_config(),
-        host_sim::sil::controller_config(&Params::prototype())
+        host_sim::harness::sil::controller_config(&Params::prototype())
     );
 }
 

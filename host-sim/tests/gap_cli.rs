@@ -1,7 +1,7 @@
 //! `host-sim measure` and `host-sim gap` as a user meets them: the end-to-end command with its
 //! JSON and files, and line-numbered one-line errors for malformed measured files.
 
-use host_sim::measured_csv::parse;
+use host_sim::gap::measured_csv::parse;
 use std::process::Command;
 
 fn host_sim(args: &[&str]) -> std::process::Output {
@@ -127,7 +127,7 @@ fn measure_then_gap_end_to_end() {
     for f in ["report.md", "curves.svg", "residuals.svg", "params-fitted.toml"] {
         assert!(out_dir.join(f).exists(), "{f} not written");
     }
-    let fitted = host_sim::params::Params::load(&out_dir.join("params-fitted.toml")).expect("loads");
+    let fitted = host_sim::motor::params::Params::load(&out_dir.join("params-fitted.toml")).expect("loads");
     let fc = fitted.effects.amplifier_rolloff.expect("effect written").rolloff_corner_hz;
     assert!((fc - 2500.0).abs() < 500.0, "{fc}");
     assert!(fitted.effects.std_dev.contains_key("rolloff_corner_hz"));

@@ -2,10 +2,10 @@
 //! base model at zero, closed forms, and the plant agreeing with the steady-state model with each
 //! effect switched on (two independent formulations, time domain and period average).
 
-use host_sim::effects::{model_speed_m_s, Condition, EffectModel, EFFECT_NAMES};
-use host_sim::params::Params;
-use host_sim::plant::steady_speed_m_s;
-use host_sim::steady::{OperatingPoint, ThrustModel};
+use host_sim::motor::effects::{model_speed_m_s, Condition, EffectModel, EFFECT_NAMES};
+use host_sim::motor::params::Params;
+use host_sim::motor::plant::steady_speed_m_s;
+use host_sim::motor::steady::{OperatingPoint, ThrustModel};
 
 fn cond(preload_n: f64, voltage_v: f64, frequency_hz: f64, load_n: f64, direction: i8) -> Condition {
     Condition { preload_n, voltage_v, frequency_hz, load_n, direction }
@@ -89,11 +89,11 @@ fn asymmetry_scales_the_foot_speed_by_one_plus_a_times_the_direction() {
 
 #[test]
 fn drive_gain_closed_forms_for_rolloff_and_resonance() {
-    let mut e = host_sim::effects::Effects::default();
+    let mut e = host_sim::motor::effects::Effects::default();
     e.set("rolloff_corner_hz", 2000.0).unwrap();
     assert!((e.drive_gain(2000.0) - 0.5f64.sqrt()).abs() < 1e-12);
     assert!((e.drive_gain(1000.0) - 1.0 / 1.25f64.sqrt()).abs() < 1e-12);
-    let mut r = host_sim::effects::Effects::default();
+    let mut r = host_sim::motor::effects::Effects::default();
     r.set("resonance_strength", 1.0).unwrap();
     r.set("resonance_damping_ratio", 1e-9).unwrap();
     // Full strength, no damping: the single-mode gain 1/(1 − (f/fr)²).
@@ -104,12 +104,12 @@ fn drive_gain_closed_forms_for_rolloff_and_resonance() {
 
 #[test]
 fn preload_dependent_friction_and_hertz_follow_their_laws() {
-    let mut e = host_sim::effects::Effects::default();
+    let mut e = host_sim::motor::effects::Effects::default();
     e.set("mu_drop_per_n", 0.05).unwrap();
     e.set("knee_preload_n", 10.0).unwrap();
     assert_eq!(e.friction_factor(8.0), 1.0);
     assert!((e.friction_factor(14.0) - 1.0 / 1.2).abs() < 1e-12);
-    let mut h = host_sim::effects::Effects::default();
+    let mut h = host_sim::motor::effects::Effects::default();
     h.set("hertz_exponent", 1.0 / 3.0).unwrap();
     assert!((h.contact_stiffness_n_per_m(2e9, 2.0) - 1e9).abs() < 1e-3);
 }
@@ -182,11 +182,14 @@ fn effects_section_round_trips_through_toml_and_rejects_bad_values() {
     assert_eq!(back, p);
     // The shipped file has no effects section and still loads as the base model.
     assert!(Params::prototype().effects.is_none());
-    let text =
-        format!("{}\n[effects.rail_friction]\nrail_coulomb_n = -1.0\n", host_sim::params::PROTOTYPE_TOML);
+    let text = format!(
+        "{}\n[effects.rail_friction]\nrail_coulomb_n = -1.0\n",
+        host_sim::motor::params::PROTOTYPE_TOML
+    );
     let e = Params::from_toml(&text).unwrap_err().to_string();
     assert!(e.contains("rail_coulomb_n") && !e.contains('\n'), "{e}");
-    let text = format!("{}\n[effects.rail_friction]\nrail_coulomb = 1.0\n", host_sim::params::PROTOTYPE_TOML);
+    let text =
+        format!("{}\n[effects.rail_friction]\nrail_coulomb = 1.0\n", host_sim::motor::params::PROTOTYPE_TOML);
     let e = Params::from_toml(&text).unwrap_err().to_string();
     assert!(e.contains("unknown field") && !e.contains('\n'), "{e}");
 }
@@ -198,7 +201,7 @@ fn effects_section_round_trips_through_toml_and_rejects_bad_values() {
 /// there is that the two senses lose the same speed.
 #[test]
 fn every_effect_has_a_signature_and_acts_along_it() {
-    use host_sim::effects::{signature, Axis};
+    use host_sim::motor::effects::{signature, Axis};
     assert!(signature("warp_drive").is_empty());
     for (name, (param, value)) in EFFECT_NAMES.iter().zip(HIDDEN) {
         let sig = signature(name);

@@ -2,11 +2,11 @@
 //! to the workflow are off by ±10 % (it must recalibrate), the noise is 1 %. Expectations are the
 //! hidden values, not what the code printed before.
 
-use host_sim::effects::{Condition, EffectModel};
+use host_sim::gap::measure::{plant_speeds_mm_s, synthesize, with_noise, Grid};
+use host_sim::gap::measured_csv::MeasuredRow;
 use host_sim::gap::{analyze, GapReport, Options};
-use host_sim::measure::{plant_speeds_mm_s, synthesize, with_noise, Grid};
-use host_sim::measured_csv::MeasuredRow;
-use host_sim::params::Params;
+use host_sim::motor::effects::{Condition, EffectModel};
+use host_sim::motor::params::Params;
 
 /// The base file the workflow is given: μ +10 %, λ −10 %, ρ +10 % against the truth.
 fn perturbed(truth: &Params) -> Params {
@@ -300,9 +300,9 @@ fn an_unknown_effect_in_the_library_is_an_error() {
          preload_dependent_friction, stribeck_friction, amplifier_rolloff, stator_resonance, hertz_contact)"
     );
     // Every known name is accepted.
-    assert!(host_sim::effects::EFFECT_NAMES
+    assert!(host_sim::motor::effects::EFFECT_NAMES
         .iter()
-        .all(|n| host_sim::effects::effect_name(n).ok() == Some(*n)));
+        .all(|n| host_sim::motor::effects::effect_name(n).ok() == Some(*n)));
 }
 
 /// Plant data whose drive chain is not in the library: a switching amplifier's second-order LC

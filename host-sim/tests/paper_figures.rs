@@ -1,8 +1,8 @@
 //! Each held row of physics.md §5, computed from the default parameter set and checked against
 //! the band we hold (the paper's figure with its tolerance). Test point: 100 V, 1.5 kHz, ceramic.
 
-use host_sim::params::Params;
-use host_sim::steady::{amplitudes, OperatingPoint, ThrustModel};
+use host_sim::motor::params::Params;
+use host_sim::motor::steady::{amplitudes, OperatingPoint, ThrustModel};
 
 fn at(preload_n: f64) -> ThrustModel {
     ThrustModel::new(

@@ -1,9 +1,9 @@
 //! The time-domain plant against the steady-state model, against itself at half the step, and
 //! against conservation laws.
 
-use host_sim::params::{FrictionModel, Params};
-use host_sim::plant::{steady_speed_m_s, ExternalLoad, Plant, QuadratureSine};
-use host_sim::steady::{OperatingPoint, ThrustModel};
+use host_sim::motor::params::{FrictionModel, Params};
+use host_sim::motor::plant::{steady_speed_m_s, ExternalLoad, Plant, QuadratureSine};
+use host_sim::motor::steady::{OperatingPoint, ThrustModel};
 
 #[test]
 fn plant_steady_speed_within_5_percent_of_the_model_over_the_prototype_grid() {

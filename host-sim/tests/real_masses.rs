@@ -2,10 +2,10 @@
 //! paper, the plant's non-contact response against eq. (5) in closed form, permanent contact
 //! against the model, and the friction layer's shear spring against Hooke's law.
 
-use host_sim::params::Params;
-use host_sim::plant::{stator_modes_hz, ExternalLoad, Plant};
+use host_sim::motor::params::Params;
+use host_sim::motor::plant::{stator_modes_hz, ExternalLoad, Plant};
+use host_sim::motor::steady::{OperatingPoint, ThrustModel};
 use host_sim::plant_figures::{contact_fraction, free_amplitude_m, full_contact_preload_n};
-use host_sim::steady::{OperatingPoint, ThrustModel};
 use std::f64::consts::TAU;
 
 fn paper_masses() -> Params {
@@ -55,7 +55,7 @@ fn free_amplitude_of_the_plant_is_eq_5() {
         let (m1, m2) = (p.stator.foot_mass_kg, p.stator.counterweight_mass_kg);
         let (k1, k2) = (p.k1_n_per_m(), p.stator.preload_spring_n_per_m);
         let ken = ((k1 - w2 * m1) * (k2 - w2 * m2) - w2 * m1 * k1) / (k2 - w2 * m2);
-        let gain = host_sim::steady::amplifier_gain(&p, f);
+        let gain = host_sim::motor::steady::amplifier_gain(&p, f);
         // Both stacks swing ±50 V; their normal forces add in quadrature (√2).
         let force = 2f64.sqrt()
             * p.stator.normal_force_ratio
@@ -121,7 +121,7 @@ fn heavy_sliders_run_forward_on_the_papers_stator_over_the_band() {
         let mut q = p.clone();
         q.slider.mass_kg = mass;
         for f in [800.0, 1500.0, 2200.0] {
-            let v = host_sim::plant::steady_speed_m_s(&q, 16.0, 100.0, f, 1, 0.0);
+            let v = host_sim::motor::plant::steady_speed_m_s(&q, 16.0, 100.0, f, 1, 0.0);
             let model =
                 ThrustModel::new(&q, OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: f })
                     .no_load_speed_m_s();

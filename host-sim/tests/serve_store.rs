@@ -3,8 +3,8 @@
 //! its flash page. So this test, through the virtual controller's TCP port, shows what the board
 //! does: every stored parameter comes back after a restart, the others are at their defaults.
 
-use host_sim::gcs_client::GcsClient;
-use host_sim::params::Params;
+use host_sim::motor::params::Params;
+use host_sim::virtual_controller::gcs_client::GcsClient;
 use piezo_drive::controller::ReferenceSignal;
 use std::io::{BufRead, BufReader};
 use std::path::Path;
@@ -111,7 +111,7 @@ fn wpa_then_restart_brings_back_every_stored_parameter_and_nothing_else() {
 
     // The file is the board's record of that configuration, byte for byte.
     let p = Params::prototype();
-    let mut expected = host_sim::sil::controller_config(&p);
+    let mut expected = host_sim::harness::sil::controller_config(&p);
     let c = &mut expected;
     (c.kp_per_s, c.ki_n_per_nm_s, c.following_error_limit_nm) = (55.5, 0.002, 40_000.0);
     (c.velocity_max_nm_s, c.accel_max_nm_s2, c.decel_max_nm_s2) = (1.5e6, 5e8, 2.5e8);

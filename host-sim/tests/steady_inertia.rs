@@ -1,10 +1,10 @@
 //! The steady-state model with the slider's inertia (`steady_inertia`) against its heavy-slider
 //! limit (the constant-speed model, eq. 19) and against the time-domain plant over carriage masses.
 
-use host_sim::params::Params;
-use host_sim::plant::steady_speed_m_s;
-use host_sim::steady::{OperatingPoint, ThrustModel};
-use host_sim::steady_inertia::InertialModel;
+use host_sim::motor::params::Params;
+use host_sim::motor::plant::steady_speed_m_s;
+use host_sim::motor::steady::{OperatingPoint, ThrustModel};
+use host_sim::motor::steady_inertia::InertialModel;
 
 fn op(preload_n: f64, voltage_v: f64, frequency_hz: f64) -> OperatingPoint {
     OperatingPoint { preload_n, voltage_v, frequency_hz }

@@ -1,8 +1,8 @@
 //! The steady-state thrust model against independent references: a direct numerical period
 //! average, the paper's literal eq. (22), and the contact-angle relations of physics.md §2.
 
-use host_sim::params::Params;
-use host_sim::steady::*;
+use host_sim::motor::params::Params;
+use host_sim::motor::steady::*;
 use std::f64::consts::{PI, TAU};
 
 fn model(preload_n: f64, voltage_v: f64, frequency_hz: f64) -> ThrustModel {

@@ -4,9 +4,9 @@
 //! amplitude scale factors of the base file) followed by each included effect's internal
 //! parameters. Levenberg–Marquardt with box bounds, forward-difference Jacobian.
 
-use crate::effects::{model_speed_m_s, Condition, Effects};
-use crate::measured_csv::MeasuredRow;
-use crate::params::Params;
+use crate::gap::measured_csv::MeasuredRow;
+use crate::motor::effects::{model_speed_m_s, Condition, Effects};
+use crate::motor::params::Params;
 use nalgebra::{DMatrix, DVector};
 
 /// Relative weight of a row: `|v| + 0.25·v̄` (matches the noise model of `measure`); the absolute

@@ -1,5 +1,5 @@
 //! The model-gap workflow: calibrate the base model to measured steady speeds, detect structure
-//! the noise cannot explain, name the missing effect(s) from the library of `crate::effects`, add
+//! the noise cannot explain, name the missing effect(s) from the library of `crate::motor::effects`, add
 //! them one at a time, and show how much of the gap they explain.
 //!
 //! Statistics (all in weighted units, weights `|v| + 0.25·v̄`, noise scale `s` from
@@ -15,15 +15,17 @@
 //!   of the weighted residuals; pure noise gives χ² with `levels − 1` degrees of freedom (the
 //!   calibrated level absorbs one). An accepted effect is *named* only when, after the final
 //!   fit, this χ² is below its `1 − α` quantile along every condition of the effect's signature
-//!   ([`crate::effects::signature`]); otherwise it is a *partial candidate*.
+//!   ([`crate::motor::effects::signature`]); otherwise it is a *partial candidate*.
 
 pub mod chi2;
 pub mod fit;
+pub mod measure;
+pub mod measured_csv;
 pub mod report;
 
-use crate::effects::{effect_name, signature, Axis, Condition, EFFECT_NAMES};
-use crate::measured_csv::MeasuredRow;
-use crate::params::Params;
+use crate::gap::measured_csv::MeasuredRow;
+use crate::motor::effects::{effect_name, signature, Axis, Condition, EFFECT_NAMES};
+use crate::motor::params::Params;
 use anyhow::{anyhow, bail, Result};
 use fit::{
     covariance, effect_params, fit as lm_fit, named_values, Data, Fit, Model, BASE_NAMES, BASE_PARAMS,
@@ -463,13 +465,13 @@ fn separating_experiment(group: &[&Candidate], model: &Model, data: &Data, s: f6
                 for direction in [1i8, -1] {
                     let c0 = Condition { preload_n, voltage_v, frequency_hz, load_n: 0.0, direction };
                     let p0 = models[0].0.params_at(&models[0].1);
-                    let m0 = crate::effects::EffectModel::new(&p0, &c0);
+                    let m0 = crate::motor::effects::EffectModel::new(&p0, &c0);
                     let stall = (m0.thrust_n(0.0) - m0.rail_coulomb_n).max(0.0);
                     for frac in [0.0, 0.4, 0.75] {
                         let c = Condition { load_n: frac * stall, ..c0 };
                         let speeds: Vec<f64> = models
                             .iter()
-                            .map(|(m, x)| crate::effects::model_speed_m_s(&m.params_at(x), &c))
+                            .map(|(m, x)| crate::motor::effects::model_speed_m_s(&m.params_at(x), &c))
                             .collect();
                         let hi = speeds.iter().copied().fold(f64::NEG_INFINITY, f64::max);
                         let lo = speeds.iter().copied().fold(f64::INFINITY, f64::min);
@@ -859,7 +861,7 @@ pub struct GapArgs {
 }
 
 pub fn run(args: GapArgs, params: &Params) -> Result<()> {
-    let rows = crate::measured_csv::read(&args.measured)?;
+    let rows = crate::gap::measured_csv::read(&args.measured)?;
     // The report directory before the work, so a bad path costs nothing.
     crate::check::output_dir("--out", &args.out)?;
     let bar = if crate::check::show_progress() {

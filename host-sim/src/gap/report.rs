@@ -1,8 +1,8 @@
 //! The workflow's outputs: Markdown report, SVG plots (plotters), updated parameter file.
 
 use super::GapReport;
-use crate::measured_csv::MeasuredRow;
-use crate::params::Params;
+use crate::gap::measured_csv::MeasuredRow;
+use crate::motor::params::Params;
 use anyhow::{anyhow, Context, Result};
 use plotters::prelude::*;
 use std::fmt::Write as _;

@@ -7,9 +7,9 @@
 //! located to `step/2^10`. This handles `kc` up to 2e9 N/m without a tiny step. The slider uses a
 //! velocity-level implicit friction law (stick solved exactly), so sticking never chatters.
 
-use crate::effects::Effects;
-use crate::params::{FrictionModel, Params};
-use crate::steady::amplifier_stage_tau_s;
+use crate::motor::effects::Effects;
+use crate::motor::params::{FrictionModel, Params};
+use crate::motor::steady::amplifier_stage_tau_s;
 use nalgebra::SMatrix;
 use rand::Rng;
 use rand_distr::StandardNormal;
@@ -137,7 +137,7 @@ pub struct Plant {
     friction_force_n: f64,
     foot_speed_m_s: f64,
     drive_off: bool,
-    // Effects beyond the base model (crate::effects); all inactive in the base model.
+    // Effects beyond the base model (crate::motor::effects); all inactive in the base model.
     effects: Effects,
     /// Sense of the foot's ellipse (+1/−1), inferred from the two stack voltages
     /// (`assembly_asymmetry` only).
@@ -622,8 +622,9 @@ pub fn steady_speed_m_s(
         QuadratureSine { voltage_v, frequency_hz, direction, mid_v: p.amplifier_mid_v(), ramp_s: 0.01 };
     plant.run(&mut drive, 0.02);
     let window_s = (0.01 * frequency_hz).ceil() / frequency_hz;
-    let scale =
-        crate::steady::amplitudes(p, voltage_v, frequency_hz).xc_m * std::f64::consts::TAU * frequency_hz;
+    let scale = crate::motor::steady::amplitudes(p, voltage_v, frequency_hz).xc_m
+        * std::f64::consts::TAU
+        * frequency_hz;
     let sign = f64::from(direction.signum());
     let mut last = f64::NAN;
     while plant.time_s() < 1.0 {

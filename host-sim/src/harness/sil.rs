@@ -2,9 +2,9 @@
 //! board gives it — 12-bit DAC words through a zero-order hold and the amplifier, encoder counts
 //! wrapped to 16 bits, preload ADC words — with a one-period output delay.
 
-use crate::params::Params;
-use crate::plant::{ExternalLoad, Plant};
-use crate::steady::amplitudes;
+use crate::motor::params::Params;
+use crate::motor::plant::{ExternalLoad, Plant};
+use crate::motor::steady::amplitudes;
 use piezo_drive::controller::{Controller, ControllerConfig, Inputs, Outputs, DAC_SAMPLES_PER_STEP};
 use piezo_drive::generator::DacConfig;
 use piezo_drive::model::{MotorConstants, FREQ_POINTS};

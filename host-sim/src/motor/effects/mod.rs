@@ -18,9 +18,9 @@
 pub mod config;
 pub use config::*;
 
-use crate::params::Params;
-use crate::roots::falling_root;
-use crate::steady::{OperatingPoint, ThrustModel};
+use crate::motor::params::Params;
+use crate::motor::roots::falling_root;
+use crate::motor::steady::{OperatingPoint, ThrustModel};
 use std::f64::consts::{PI, TAU};
 
 /// One steady operating row: the drive, the load opposing the commanded motion, the drive sense.

@@ -4,7 +4,7 @@
 //! thrust is the period average of the friction force (19). Angles `φ` are measured from the top of
 //! the ellipse, where the foot presses hardest and moves fastest in the drive direction.
 
-use crate::params::Params;
+use crate::motor::params::Params;
 use std::f64::consts::{PI, TAU};
 
 /// Operating condition of one steady run. `voltage_v` is the peak-to-peak swing of each stack

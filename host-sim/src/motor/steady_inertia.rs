@@ -11,9 +11,9 @@
 //! period map of a first-order flow is monotone, so `v(T) − v(0)` falls through zero once. Its
 //! mean speed tends to the constant-speed model's as `M → ∞` (tested).
 
-use crate::params::Params;
-use crate::roots::falling_root;
-use crate::steady::{OperatingPoint, ThrustModel};
+use crate::motor::params::Params;
+use crate::motor::roots::falling_root;
+use crate::motor::steady::{OperatingPoint, ThrustModel};
 use std::f64::consts::{PI, TAU};
 
 /// Steps per drive period of the orbit integration (0.5° each).

@@ -3,8 +3,8 @@
 //! uses ([`piezo_drive::gcs`]), over TCP (`--tcp 127.0.0.1:PORT`) or a pseudo-terminal (`--pty`).
 //! One client at a time; a client that disconnects mid-line leaves nothing behind.
 
-use crate::params::Params;
-use crate::sil::{controller_config, Sil};
+use crate::harness::sil::{controller_config, Sil};
+use crate::motor::params::Params;
 use anyhow::{bail, Context, Result};
 use piezo_drive::controller::ControllerConfig;
 use piezo_drive::gcs::{Board, Gcs, LoopStats, Pending, Reply};

@@ -5,10 +5,10 @@
 //! `P/100 · (|v| + 0.25·v̄)`, where `v̄` is the mean noiseless speed of the data set (a relative
 //! error plus a floor, so near-stall points are not noise-free). Stalled points read 0.
 
-use crate::effects::{Condition, EffectModel, Effects};
-use crate::measured_csv::{to_csv_string, MeasuredRow};
-use crate::params::Params;
-use crate::plant::steady_speed_m_s;
+use crate::gap::measured_csv::{to_csv_string, MeasuredRow};
+use crate::motor::effects::{Condition, EffectModel, Effects};
+use crate::motor::params::Params;
+use crate::motor::plant::steady_speed_m_s;
 use anyhow::{anyhow, bail, Context, Result};
 use rand::rngs::StdRng;
 use rand::SeedableRng;
@@ -144,13 +144,13 @@ pub fn parse_effect_spec(spec: &str, effects: &mut Effects) -> Result<()> {
     let (name, rest) = spec
         .split_once(':')
         .ok_or_else(|| anyhow!("--effect '{spec}': expected NAME:param=value[,param=value]"))?;
-    let name = crate::effects::effect_name(name).map_err(|e| anyhow!("--effect '{spec}': {e}"))?;
+    let name = crate::motor::effects::effect_name(name).map_err(|e| anyhow!("--effect '{spec}': {e}"))?;
     for kv in rest.split(',') {
         let (k, v) = kv
             .split_once('=')
             .ok_or_else(|| anyhow!("--effect '{spec}': expected param=value, got '{kv}'"))?;
         let (k, v) = (k.trim(), v.trim());
-        if !crate::effects::PARAM_NAMES.iter().any(|(e, n)| *e == name && *n == k) {
+        if !crate::motor::effects::PARAM_NAMES.iter().any(|(e, n)| *e == name && *n == k) {
             bail!("--effect '{spec}': '{k}' is not a parameter of {name}");
         }
         let value: f64 = v.parse().map_err(|_| anyhow!("--effect '{spec}': '{v}' is not a number"))?;

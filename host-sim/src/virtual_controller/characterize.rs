@@ -8,8 +8,8 @@
 //! range (`TMN?`..`TMX?`). The preload is read from the force cell (`XPF?`) before every burst;
 //! the load column is the weight the user says is hanging on the slider (`--load-n`).
 
-use crate::gcs_client::GcsClient;
-use crate::measured_csv::{to_csv_string, MeasuredRow, HEADER};
+use crate::gap::measured_csv::{to_csv_string, MeasuredRow, HEADER};
+use crate::virtual_controller::gcs_client::GcsClient;
 use anyhow::{bail, Context, Result};
 use std::io::Write;
 use std::path::PathBuf;

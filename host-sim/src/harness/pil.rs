@@ -7,10 +7,10 @@
 //! whose outputs differ is counted (`sil_mismatch_ticks`).
 
 use crate::check;
-use crate::moves::FaultReport;
-use crate::params::Params;
-use crate::plant::ExternalLoad;
-use crate::sil::{controller_config, Sil};
+use crate::harness::moves::FaultReport;
+use crate::harness::sil::{controller_config, Sil};
+use crate::motor::params::Params;
+use crate::motor::plant::ExternalLoad;
 use anyhow::{anyhow, bail, Context, Result};
 use piezo_drive::controller::{Inputs, Outputs, State};
 use piezo_drive::pil_wire::{self, Command, Reply, Tick, REPLY_BYTES};
@@ -280,9 +280,9 @@ pub fn run(p: &Params, args: &PilArgs, elf: &Path) -> Result<PilResult> {
     let dir = if to_nm >= 0 { 1 } else { -1 };
     let mut load_n = args.load_n;
     if args.fault == Some(FaultCase::Stall) {
-        let stall = crate::steady::ThrustModel::new(
+        let stall = crate::motor::steady::ThrustModel::new(
             p,
-            crate::steady::OperatingPoint {
+            crate::motor::steady::OperatingPoint {
                 preload_n: args.preload_n,
                 voltage_v: 100.0,
                 frequency_hz: 2200.0,

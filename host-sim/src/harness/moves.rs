@@ -1,9 +1,9 @@
 //! Closed-loop moves in the loop: one move (`host-sim move`) and the scripted demo.
 
 use crate::check::ser;
-use crate::params::Params;
-use crate::plant::ExternalLoad;
-use crate::sil::{controller_config, Sil};
+use crate::harness::sil::{controller_config, Sil};
+use crate::motor::params::Params;
+use crate::motor::plant::ExternalLoad;
 use piezo_drive::controller::{ControllerConfig, State};
 use serde::Serialize;
 

@@ -6,12 +6,12 @@
 
 use anyhow::{bail, Context, Result};
 
-use crate::effects::config::Effects;
+use crate::motor::effects::config::Effects;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
 /// The prototype parameter set shipped with the project.
-pub const PROTOTYPE_TOML: &str = include_str!("../params/prototype.toml");
+pub const PROTOTYPE_TOML: &str = include_str!("../../params/prototype.toml");
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -24,7 +24,7 @@ pub struct Params {
     pub slider: Slider,
     pub sensors: Sensors,
     pub integrator: Integrator,
-    /// Effects beyond the base model (`crate::effects`); optional, absent in the base model.
+    /// Effects beyond the base model (`crate::motor::effects`); optional, absent in the base model.
     #[serde(default, skip_serializing_if = "Effects::is_none")]
     pub effects: Effects,
 }
