@@ -153,7 +153,7 @@ impl ThrustModel {
     }
 
     /// Half-width φp of the arc where the foot outruns a slider moving at `v` (eq. 17).
-    fn drive_half_angle(&self, speed_m_s: f64) -> f64 {
+    pub fn drive_half_angle(&self, speed_m_s: f64) -> f64 {
         if self.foot_speed_m_s <= 0.0 {
             return if speed_m_s < 0.0 { PI } else { 0.0 };
         }

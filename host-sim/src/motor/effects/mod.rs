@@ -98,13 +98,7 @@ impl EffectModel {
         if half <= 0.0 {
             return 0.0;
         }
-        let phi_p = if wx > 0.0 {
-            (v / wx).clamp(-1.0, 1.0).acos()
-        } else if v < 0.0 {
-            PI
-        } else {
-            0.0
-        };
+        let phi_p = m.drive_half_angle(v);
         let vs = self.stribeck_speed_m_s;
         let g = |phi: f64| {
             let slip = wx * phi.cos() - v;
