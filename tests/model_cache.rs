@@ -1,0 +1,79 @@
+//! The hand-over of the model table between the board's slow task and the tick
+//! (`controller::model_cache`): what the controller asks for, what it takes, and what it does
+//! without a table.
+
+use piezo_drive::controller::model_cache::ModelTable;
+use piezo_drive::controller::{Controller, Inputs, State};
+use piezo_drive::defaults;
+
+/// 16 N on the default force cell (50 N full scale on 4095 words).
+const WORD_16_N: u16 = 1310;
+
+fn controller_at(word: u16) -> Controller {
+    let mut ctl = Controller::new(defaults::controller_config()).unwrap();
+    ctl.step(&Inputs { preload_word: word, ..Default::default() });
+    ctl
+}
+
+#[test]
+fn a_table_is_asked_for_until_one_fits_the_measured_preload() {
+    let mut ctl = Controller::new(defaults::controller_config()).unwrap();
+    // No preload reading yet: nothing to build a table for.
+    assert!(ctl.model_request().is_none());
+    ctl.step(&Inputs { preload_word: WORD_16_N, ..Default::default() });
+    let request = ctl.model_request().expect("a table is wanted once the preload is read");
+    let preload = ctl.preload_n().unwrap();
+    assert!((request.preload_n - preload).abs() < 1e-6);
+    assert!(ctl.install_model(ModelTable::build(&request)));
+    assert!(ctl.model_request().is_none(), "the installed table fits");
+    // 5 words ≈ 0.061 N: more than the 0.02 N the table may be off by. The filter (α = 0.01)
+    // needs a few periods to move that far.
+    for _ in 0..200 {
+        ctl.step(&Inputs { preload_word: WORD_16_N + 5, ..Default::default() });
+    }
+    let moved = ctl.preload_n().unwrap();
+    assert!(moved - preload > 0.02, "preload moved {} N", moved - preload);
+    let again = ctl.model_request().expect("a new table for the new preload");
+    assert!((again.preload_n - moved).abs() < 1e-6);
+}
+
+#[test]
+fn a_table_for_settings_that_changed_meanwhile_is_refused() {
+    let mut ctl = controller_at(WORD_16_N);
+    let request = ctl.model_request().unwrap();
+    // The settings change while the slow task builds (a new drive frequency).
+    let mut cfg = *ctl.config();
+    cfg.drive_freq_hz = 1500.0;
+    ctl.set_config(cfg).unwrap();
+    assert!(!ctl.install_model(ModelTable::build(&request)), "built for the old frequency");
+    let fresh = ctl.model_request().expect("still wanted");
+    assert_ne!(fresh.per_volt, request.per_volt);
+    assert!(ctl.install_model(ModelTable::build(&fresh)));
+    // A settings change drops the installed table too.
+    let mut cfg = *ctl.config();
+    cfg.kp_per_s *= 2.0;
+    ctl.set_config(cfg).unwrap();
+    assert!(ctl.model_request().is_some());
+}
+
+#[test]
+fn without_a_table_a_move_is_accepted_but_the_drive_stays_quiet() {
+    // The board's task has not delivered yet: the profile has no speed to move at, so the
+    // controller holds where it is rather than drive without a model.
+    let mut ctl = controller_at(WORD_16_N);
+    ctl.set_servo(true).unwrap();
+    ctl.move_to(100_000).unwrap();
+    for _ in 0..100 {
+        let out = ctl.step(&Inputs { preload_word: WORD_16_N, ..Default::default() });
+        assert!(out.amp_enable);
+    }
+    assert_eq!(ctl.state(), State::Moving);
+    assert_eq!(ctl.reference_nm(), 0, "the profile did not advance");
+    assert_eq!(ctl.drive_voltage_v(), 0.0);
+    // Once the table is in, it moves.
+    ctl.background();
+    for _ in 0..100 {
+        ctl.step(&Inputs { preload_word: WORD_16_N, ..Default::default() });
+    }
+    assert!(ctl.reference_nm() > 0);
+}
