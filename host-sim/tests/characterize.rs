@@ -4,8 +4,9 @@
 
 use host_sim::gap::measured_csv;
 use host_sim::virtual_controller::gcs_client::GcsClient;
-use std::io::{BufRead, BufReader};
-use std::process::{Child, Command, Stdio};
+use std::process::{Child, Command};
+
+mod common;
 
 fn bin() -> &'static str {
     env!("CARGO_BIN_EXE_host-sim")
@@ -13,16 +14,7 @@ fn bin() -> &'static str {
 
 /// `host-sim serve` on a free port; returns the child and its address.
 fn serve() -> (Child, String) {
-    let mut child = Command::new(bin())
-        .args(["serve", "--tcp", "127.0.0.1:0", "--duration-s", "120"])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("serve starts");
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().expect("stdout")).read_line(&mut line).expect("listening line");
-    let addr = line.trim().rsplit(' ').next().expect("address").to_string();
-    (child, addr)
+    common::serve(120, std::iter::empty::<&str>())
 }
 
 fn tmp(name: &str) -> std::path::PathBuf {

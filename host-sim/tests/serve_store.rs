@@ -6,23 +6,15 @@
 use host_sim::motor::params::Params;
 use host_sim::virtual_controller::gcs_client::GcsClient;
 use piezo_drive::controller::ReferenceSignal;
-use std::io::{BufRead, BufReader};
+use std::ffi::OsStr;
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::Child;
+
+mod common;
 
 /// `host-sim serve --store store` on a free port; returns the child and its address.
 fn serve(store: &Path) -> (Child, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args(["serve", "--tcp", "127.0.0.1:0", "--duration-s", "60", "--store"])
-        .arg(store)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("serve starts");
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().expect("stdout")).read_line(&mut line).expect("listening line");
-    let addr = line.trim().rsplit(' ').next().expect("address").to_string();
-    (child, addr)
+    common::serve(60, [OsStr::new("--store"), store.as_os_str()])
 }
 
 /// Every settable parameter away from its default: id, the value sent (`SPA`, or `VEL`/`ACC`/
