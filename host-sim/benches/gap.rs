@@ -9,14 +9,14 @@ use std::time::Instant;
 
 fn main() {
     // `cargo bench` passes `--bench`; anything else (e.g. a filter) is ignored.
-    let mut truth = Params::prototype();
+    let mut truth = Params::heavy_slider();
     truth.effects.set("rail_coulomb_n", 0.4).expect("known parameter");
     truth.effects.set("rolloff_corner_hz", 2500.0).expect("known parameter");
     let grid = Grid::paper();
     let t = Instant::now();
     let rows = synthesize(&truth, &grid, 1.0, 7, &|| {});
     let synth_s = t.elapsed().as_secs_f64();
-    let mut base = Params::prototype();
+    let mut base = Params::heavy_slider();
     base.friction.mu_dynamic *= 1.1;
     base.friction.mu_static *= 1.1;
     base.stator.tangential_scale *= 0.9;

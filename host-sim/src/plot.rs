@@ -133,6 +133,13 @@ pub fn motion(trace: &[crate::harness::moves::TracePoint], title: &str, path: &P
 /// One drive period of one or more plants (e.g. a light and a heavy carriage) in three panels:
 /// foot motion, contact and friction force, foot and slider speed; one colour per trace.
 pub fn period(traces: &[crate::trace::PeriodTrace], path: &Path) -> Result<()> {
+    let labels: Vec<String> = traces.iter().map(|t| format!("slider {} kg", t.slider_mass_kg)).collect();
+    period_labelled(traces, &labels, path)
+}
+
+/// [`period`] with a legend label per trace (e.g. two plants that differ in something else than
+/// the slider); the mean speed follows each label.
+pub fn period_labelled(traces: &[crate::trace::PeriodTrace], labels: &[String], path: &Path) -> Result<()> {
     use crate::trace::PeriodSample;
     let err = |e: DrawingAreaErrorKind<_>| anyhow!("plot {}: {e}", path.display());
     let root = SVGBackend::new(path, (900, 900)).into_drawing_area();
@@ -175,7 +182,7 @@ pub fn period(traces: &[crate::trace::PeriodTrace], path: &Path) -> Result<()> {
             .build_cartesian_2d(0.0..360.0, (lo - pad)..(hi + pad))
             .map_err(err)?;
         chart.configure_mesh().x_desc("drive phase (deg)").y_desc(label).draw().map_err(err)?;
-        for (t, colour) in traces.iter().zip(colours.iter().cycle()) {
+        for ((t, colour), name) in traces.iter().zip(colours.iter().cycle()).zip(labels) {
             for (k, (_, pick)) in series.iter().enumerate() {
                 let points = t.samples.iter().map(|s| (s.phase_deg, pick(s)));
                 let style = colour.stroke_width(if k == 0 { 2 } else { 1 });
@@ -183,7 +190,7 @@ pub fn period(traces: &[crate::trace::PeriodTrace], path: &Path) -> Result<()> {
                     chart
                         .draw_series(LineSeries::new(points, style))
                         .map_err(err)?
-                        .label(format!("slider {} kg: {:.3} mm/s", t.slider_mass_kg, t.mean_speed_mm_s))
+                        .label(format!("{name}: {:.3} mm/s", t.mean_speed_mm_s))
                         .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], style));
                 } else {
                     // Dashed: every other short segment.

@@ -11,6 +11,7 @@ use crate::gap::measured_csv;
 use crate::harness::moves;
 use crate::motor::params::Params;
 use crate::motor::steady::{OperatingPoint, ThrustModel};
+use crate::motor::steady_inertia::InertialModel;
 use crate::{curve, gap, plot, trace};
 use anyhow::{bail, Context, Result};
 use piezo_drive::settings::{DefaultValue, Keep, Range, Setting, Ty, Value, SETTINGS};
@@ -29,7 +30,7 @@ pub struct ReadmeFiguresArgs {
     pub root: PathBuf,
 }
 
-const PAPER_MASSES: &str = "host-sim/params/paper-masses.toml";
+const HEAVY_SLIDER: &str = "host-sim/params/heavy-slider.toml";
 const EXAMPLE_CSV: &str = "host-sim/data/example-measured.csv";
 
 /// A generated README table.
@@ -98,10 +99,13 @@ fn moves_table(p: &Params) -> Result<String> {
     Ok(t)
 }
 
-/// No-load speed at 16 N, 100 V on the paper-mass stator, plant / model (mm/s).
-fn paper_masses_table(p: &Params) -> String {
+/// No-load speed at 16 N, 100 V on the default stator for a range of carriages: the time-domain
+/// plant beside the steady-state model with the carriage's inertia (mm/s); the constant-speed
+/// model's, which no mass changes, in the last row.
+fn slider_mass_table(p: &Params) -> String {
     let masses = [0.05, 0.1, 0.3, 1.0, 5.0, 50.0];
     let freqs = [800.0, 1500.0, 2200.0];
+    let op = |f: f64| OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: f };
     let cells: Vec<(f64, f64)> = masses
         .iter()
         .flat_map(|&m| freqs.iter().map(move |&f| (m, f)))
@@ -111,22 +115,25 @@ fn paper_masses_table(p: &Params) -> String {
             let mut q = p.clone();
             q.slider.mass_kg = m;
             let plant = crate::motor::plant::steady_speed_m_s(&q, 16.0, 100.0, f, 1, 0.0) * 1e3;
-            let op = OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: f };
-            let model = ThrustModel::new(&q, op).no_load_speed_m_s() * 1e3;
+            let model = InertialModel::new(&q, op(f)).no_load_speed_m_s() * 1e3;
             (plant, model)
         })
         .collect();
+    let signed = |v: f64| if v < 0.0 { format!("**−{:.2}**", -v) } else { format!("{v:.2}") };
     let mut t = String::from("| slider | 0.8 kHz | 1.5 kHz | 2.2 kHz |\n|---|---|---|---|\n");
     for (i, m) in masses.iter().enumerate() {
         let _ = write!(t, "| {m} kg |");
         for j in 0..freqs.len() {
             let (plant, model) = cells[i * freqs.len() + j];
-            let plant_text =
-                if plant < 0.0 { format!("**−{:.2}**", -plant) } else { format!("{plant:.2}") };
-            let _ = write!(t, " {plant_text} / {model:.2} |");
+            let _ = write!(t, " {} / {} |", signed(plant), signed(model));
         }
         t.push('\n');
     }
+    let _ = write!(t, "| constant-speed model |");
+    for &f in &freqs {
+        let _ = write!(t, " {:.2} |", ThrustModel::new(p, op(f)).no_load_speed_m_s() * 1e3);
+    }
+    t.push('\n');
     t
 }
 
@@ -217,7 +224,7 @@ pub fn parameters_table() -> String {
 /// Everything, written to `docs` (figures) and returned (tables).
 fn generate(root: &Path, docs: &Path) -> Result<Vec<Table>> {
     let proto = Params::prototype();
-    let paper_masses = Params::load(&root.join(PAPER_MASSES))?;
+    let heavy = Params::load(&root.join(HEAVY_SLIDER))?;
     let op = OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 };
 
     let (_, demo_trace) = moves::demo(&proto, |_| {})?;
@@ -226,26 +233,34 @@ fn generate(root: &Path, docs: &Path) -> Result<Vec<Table>> {
     let c = curve::compute(&proto, op, 1, 8, 0.9, |_, _| {});
     plot::thrust_velocity(&c, &docs.join("thrust-velocity.svg"))?;
 
-    for (params, masses, file) in [
-        (&proto, [0.3, 50.0], "period-prototype-1500hz.svg"),
-        (&paper_masses, [0.3, 5.0], "period-paper-masses-1500hz.svg"),
-    ] {
-        let traces: Vec<trace::PeriodTrace> = masses
+    let period_traces = |params: &Params, masses: &[f64]| -> Vec<trace::PeriodTrace> {
+        masses
             .par_iter()
             .map(|&m| {
                 let mut q = params.clone();
                 q.slider.mass_kg = m;
                 trace::one_period(&q, op, 0.0, 720)
             })
-            .collect();
-        plot::period(&traces, &docs.join(file))?;
-    }
+            .collect()
+    };
+    plot::period(&period_traces(&proto, &[0.3, 5.0]), &docs.join("period-prototype-1500hz.svg"))?;
+    // The evidence for the preload mode's damping: the default carriage with the structural 5 %
+    // on that mode (ringing, contact off the foot's peak speed) and with the file's value.
+    let mut ringing = proto.clone();
+    ringing.stator.preload_damping_ratio = Some(ringing.stator.damping_ratio);
+    let pair =
+        [period_traces(&ringing, &[proto.slider.mass_kg]), period_traces(&proto, &[proto.slider.mass_kg])];
+    let labels = [
+        format!("preload mode damped {}", ringing.stator.preload_mode_damping_ratio()),
+        format!("preload mode damped {}", proto.stator.preload_mode_damping_ratio()),
+    ];
+    plot::period_labelled(&pair.concat(), &labels, &docs.join("period-preload-damping-1500hz.svg"))?;
 
     let csv = root.join(EXAMPLE_CSV);
     let rows = measured_csv::read(&csv)?;
-    let report = gap::analyze(&proto, &rows, &gap::Options::default(), &|_, _, _| {})?;
+    let report = gap::analyze(&heavy, &rows, &gap::Options::default(), &|_, _, _| {})?;
     let gap_dir = tempdir("gap")?;
-    gap::report::write_all(&report, &rows, &proto, Path::new(EXAMPLE_CSV), &gap_dir)?;
+    gap::report::write_all(&report, &rows, &heavy, Path::new(EXAMPLE_CSV), &gap_dir)?;
     for (from, to) in
         [(gap::report::CURVES_SVG, "gap-curves.svg"), (gap::report::RESIDUALS_SVG, "gap-residuals.svg")]
     {
@@ -256,7 +271,7 @@ fn generate(root: &Path, docs: &Path) -> Result<Vec<Table>> {
 
     Ok(vec![
         Table { name: "moves", text: moves_table(&proto)? },
-        Table { name: "paper-masses-speeds", text: paper_masses_table(&paper_masses) },
+        Table { name: "slider-mass-speeds", text: slider_mass_table(&proto) },
         Table { name: "gap-example", text: gap_table(&report) },
         Table { name: "parameters", text: parameters_table() },
     ])
@@ -267,7 +282,7 @@ pub const FIGURES: [&str; 6] = [
     "demo.svg",
     "thrust-velocity.svg",
     "period-prototype-1500hz.svg",
-    "period-paper-masses-1500hz.svg",
+    "period-preload-damping-1500hz.svg",
     "gap-curves.svg",
     "gap-residuals.svg",
 ];

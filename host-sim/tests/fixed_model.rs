@@ -1,5 +1,10 @@
 //! The firmware's fixed-point thrust model against host-sim's f64 model (the same equations):
 //! within 1 % of the stall force over the operating grid, both directions.
+//!
+//! The grid's frequencies stay above 1.1 kHz. With the paper's 1 kg counterweight the foot-clamped
+//! counterweight mode is at 857 Hz: there eq. (7)'s contact amplitude grows without bound (kc·Yc
+//! per volt 0.13 N at 600 Hz, 1.4 N at 900 Hz, 0.23 N at 1.5 kHz), the model is not the plant
+//! (`host-sim paper`, README) and the controller does not drive there.
 
 use host_sim::harness::sil::motor_constants;
 use host_sim::motor::params::Params;
@@ -14,7 +19,7 @@ fn fixed_point_thrust_within_1_percent_of_stall_over_the_operating_grid() {
     let mut points = 0;
     for preload_n in [3.0, 5.0, 8.0, 12.0, 16.0, 20.0] {
         for voltage_v in [30.0, 50.0, 75.0, 100.0] {
-            for frequency_hz in [500.0, 800.0, 1250.0, 1500.0, 1900.0, 2200.0] {
+            for frequency_hz in [1150.0, 1250.0, 1500.0, 1750.0, 1900.0, 2200.0] {
                 let op = OperatingPoint { preload_n, voltage_v, frequency_hz };
                 let reference = ThrustModel::new(&p, op);
                 let stall = reference.stall_force_n();
@@ -113,7 +118,7 @@ fn model_table_within_1_percent_of_stall_of_the_f64_model() {
     let k = motor_constants(&p);
     let (mut worst_thrust, mut worst_inverse, mut worst_speed) = (0.0f64, 0.0f64, 0.0f64);
     for preload_n in [5.0f64, 10.0, 16.0, 20.0] {
-        for frequency_hz in [800.0f64, 1500.0, 2200.0] {
+        for frequency_hz in [1200.0f64, 1500.0, 2200.0] {
             let per_volt = k.at_frequency(Fx::from_num(frequency_hz / 1000.0));
             let request =
                 ModelRequest { per_volt, preload_n: preload_n as f32, max_drive_v: 100.0, generation: 0 };

@@ -84,7 +84,12 @@ fn the_cli_reports_bad_measured_files_on_one_line_with_a_non_zero_exit() {
 fn measure_then_gap_end_to_end() {
     let csv = tmp("measured.csv");
     let out_dir = tmp("report");
+    // The gap workflow's base model is the constant-speed model: its workflow runs on the
+    // heavy-slider set, where that model holds.
+    let heavy = concat!(env!("CARGO_MANIFEST_DIR"), "/params/heavy-slider.toml");
     let m = host_sim(&[
+        "--params",
+        heavy,
         "measure",
         "--effect",
         "amplifier_rolloff:rolloff_corner_hz=2500",
@@ -98,8 +103,16 @@ fn measure_then_gap_end_to_end() {
         csv.to_str().unwrap(),
     ]);
     assert!(m.status.success(), "{}", String::from_utf8_lossy(&m.stderr));
-    let g =
-        host_sim(&["gap", "--measured", csv.to_str().unwrap(), "--out", out_dir.to_str().unwrap(), "--json"]);
+    let g = host_sim(&[
+        "--params",
+        heavy,
+        "gap",
+        "--measured",
+        csv.to_str().unwrap(),
+        "--out",
+        out_dir.to_str().unwrap(),
+        "--json",
+    ]);
     assert!(g.status.success(), "{}", String::from_utf8_lossy(&g.stderr));
     let v: serde_json::Value = serde_json::from_slice(&g.stdout).expect("one JSON object");
     assert_eq!(v["named_effects"], serde_json::json!(["amplifier_rolloff"]));

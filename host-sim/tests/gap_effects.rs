@@ -24,7 +24,7 @@ const HIDDEN: [(&str, f64); 7] = [
 
 #[test]
 fn without_effects_the_model_is_the_base_thrust_model() {
-    let p = Params::prototype();
+    let p = Params::heavy_slider();
     for (f0, v, f, frac, dir) in
         [(16.0, 100.0, 1500.0, 0.0, 1), (10.0, 60.0, 900.0, 0.5, -1), (5.0, 100.0, 2100.0, 0.8, 1)]
     {
@@ -38,7 +38,7 @@ fn without_effects_the_model_is_the_base_thrust_model() {
 
 #[test]
 fn every_effect_at_zero_strength_reduces_exactly_to_the_base_model_in_model_and_plant() {
-    let p = Params::prototype();
+    let p = Params::heavy_slider();
     let c = cond(12.0, 80.0, 1300.0, 1.0, -1);
     let base_model = model_speed_m_s(&p, &c);
     let base_plant = steady_speed_m_s(&p, c.preload_n, c.voltage_v, c.frequency_hz, c.direction, c.load_n);
@@ -56,7 +56,7 @@ fn every_effect_at_zero_strength_reduces_exactly_to_the_base_model_in_model_and_
 
 #[test]
 fn rail_coulomb_friction_adds_exactly_to_the_load_and_stalls_below_it() {
-    let p = Params::prototype();
+    let p = Params::heavy_slider();
     let mut q = p.clone();
     q.effects.set("rail_coulomb_n", 0.7).unwrap();
     let m = ThrustModel::new(&p, OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 });
@@ -73,7 +73,7 @@ fn rail_coulomb_friction_adds_exactly_to_the_load_and_stalls_below_it() {
 
 #[test]
 fn asymmetry_scales_the_foot_speed_by_one_plus_a_times_the_direction() {
-    let p = Params::prototype();
+    let p = Params::heavy_slider();
     let mut q = p.clone();
     q.effects.set("asymmetry_fraction", 0.1).unwrap();
     for (dir, factor) in [(1i8, 1.1), (-1, 0.9)] {
@@ -116,7 +116,7 @@ fn preload_dependent_friction_and_hertz_follow_their_laws() {
 
 #[test]
 fn stribeck_thrust_matches_a_direct_period_average_of_the_same_law() {
-    let mut q = Params::prototype();
+    let mut q = Params::heavy_slider();
     q.effects.set("stribeck_rise", 1.5).unwrap();
     let vs = 3e-4;
     for (f0, v_frac) in [(10.0, 0.0), (10.0, 0.5), (16.0, 0.8), (22.0, 0.3), (10.0, -0.3)] {
@@ -150,7 +150,7 @@ fn stribeck_thrust_matches_a_direct_period_average_of_the_same_law() {
 #[test]
 fn plant_with_each_effect_agrees_with_the_steady_state_model_with_it() {
     for (name, value) in HIDDEN {
-        let mut q = Params::prototype();
+        let mut q = Params::heavy_slider();
         if name == "hertz_exponent" {
             q.contact.stiffness_n_per_m = 2e7;
         }
@@ -164,7 +164,7 @@ fn plant_with_each_effect_agrees_with_the_steady_state_model_with_it() {
             let load = frac * (em.thrust_n(0.0) - em.rail_coulomb_n);
             let model = model_speed_m_s(&q, &Condition { load_n: load, ..c0 });
             let plant = steady_speed_m_s(&q, f0, v, f, dir, load);
-            let base = model_speed_m_s(&Params::prototype(), &Condition { load_n: load, ..c0 });
+            let base = model_speed_m_s(&Params::heavy_slider(), &Condition { load_n: load, ..c0 });
             let err = (plant - model) / model;
             eprintln!("{name}: F0 {f0} {v} V {f} Hz dir {dir}: model {model:.6e} plant {plant:.6e} ({:.2} %), base model {base:.6e}", 100.0 * err);
             assert!(err.abs() < 0.05, "{name} at F0 {f0}, {f} Hz: model {model} plant {plant}");
@@ -174,22 +174,24 @@ fn plant_with_each_effect_agrees_with_the_steady_state_model_with_it() {
 
 #[test]
 fn effects_section_round_trips_through_toml_and_rejects_bad_values() {
-    let mut p = Params::prototype();
+    let mut p = Params::heavy_slider();
     p.effects.set("rail_coulomb_n", 0.25).unwrap();
     p.effects.set("rolloff_corner_hz", 3000.0).unwrap();
     p.effects.std_dev.insert("rail_coulomb_n".into(), 0.01);
     let back = Params::from_toml(&p.to_toml()).unwrap();
     assert_eq!(back, p);
     // The shipped file has no effects section and still loads as the base model.
-    assert!(Params::prototype().effects.is_none());
+    assert!(Params::heavy_slider().effects.is_none());
     let text = format!(
         "{}\n[effects.rail_friction]\nrail_coulomb_n = -1.0\n",
-        host_sim::motor::params::PROTOTYPE_TOML
+        host_sim::motor::params::HEAVY_SLIDER_TOML
     );
     let e = Params::from_toml(&text).unwrap_err().to_string();
     assert!(e.contains("rail_coulomb_n") && !e.contains('\n'), "{e}");
-    let text =
-        format!("{}\n[effects.rail_friction]\nrail_coulomb = 1.0\n", host_sim::motor::params::PROTOTYPE_TOML);
+    let text = format!(
+        "{}\n[effects.rail_friction]\nrail_coulomb = 1.0\n",
+        host_sim::motor::params::HEAVY_SLIDER_TOML
+    );
     let e = Params::from_toml(&text).unwrap_err().to_string();
     assert!(e.contains("unknown field") && !e.contains('\n'), "{e}");
 }
@@ -209,7 +211,7 @@ fn every_effect_has_a_signature_and_acts_along_it() {
         for (i, a) in sig.iter().enumerate() {
             assert!(!sig[i + 1..].contains(a), "{name}: {a:?} twice");
         }
-        let mut base = Params::prototype();
+        let mut base = Params::heavy_slider();
         if *name == "hertz_contact" {
             // On the ceramic contact kc hardly matters (eq. 7); a compliant layer shows it.
             base.contact.stiffness_n_per_m = 2e7;

@@ -157,12 +157,12 @@ fn most_structured(r: &GapReport) -> &str {
 
 #[test]
 fn rail_friction_is_named_and_recovered() {
-    let _ = recovers("rail_friction", &[("rail_coulomb_n", 0.5)], Params::prototype());
+    let _ = recovers("rail_friction", &[("rail_coulomb_n", 0.5)], Params::heavy_slider());
 }
 
 #[test]
 fn assembly_asymmetry_is_named_and_recovered() {
-    let r = recovers("assembly_asymmetry", &[("asymmetry_fraction", 0.1)], Params::prototype());
+    let r = recovers("assembly_asymmetry", &[("asymmetry_fraction", 0.1)], Params::heavy_slider());
     // Only the drive sense tells the two strokes apart: that is where the residuals show it.
     assert_eq!(most_structured(&r), "direction");
 }
@@ -172,24 +172,24 @@ fn preload_dependent_friction_is_named_and_recovered() {
     let _ = recovers(
         "preload_dependent_friction",
         &[("mu_drop_per_n", 0.05), ("knee_preload_n", 10.0)],
-        Params::prototype(),
+        Params::heavy_slider(),
     );
 }
 
 #[test]
 fn stribeck_friction_is_named_and_recovered() {
-    let _ = recovers("stribeck_friction", &[("stribeck_rise", 1.5)], Params::prototype());
+    let _ = recovers("stribeck_friction", &[("stribeck_rise", 1.5)], Params::heavy_slider());
 }
 
 #[test]
 fn amplifier_rolloff_is_named_and_recovered() {
-    let r = recovers("amplifier_rolloff", &[("rolloff_corner_hz", 2500.0)], Params::prototype());
+    let r = recovers("amplifier_rolloff", &[("rolloff_corner_hz", 2500.0)], Params::heavy_slider());
     assert_eq!(most_structured(&r), "frequency");
 }
 
 #[test]
 fn stator_resonance_is_named_and_recovered() {
-    let r = recovers("stator_resonance", &[("resonance_strength", 0.3)], Params::prototype());
+    let r = recovers("stator_resonance", &[("resonance_strength", 0.3)], Params::heavy_slider());
     assert_eq!(most_structured(&r), "frequency");
 }
 
@@ -198,14 +198,14 @@ fn stator_resonance_is_named_and_recovered() {
 /// On a compliant friction layer (kc = 2e7 N/m, comparable to k1) it does, and must be found.
 #[test]
 fn hertz_contact_is_named_and_recovered_on_a_compliant_contact() {
-    let mut soft = Params::prototype();
+    let mut soft = Params::heavy_slider();
     soft.contact.stiffness_n_per_m = 2e7;
     let _ = recovers("hertz_contact", &[("hertz_exponent", 1.0 / 3.0)], soft);
 }
 
 #[test]
 fn hertz_contact_on_the_ceramic_contact_is_below_noise_and_nothing_is_named() {
-    let mut truth = Params::prototype();
+    let mut truth = Params::heavy_slider();
     truth.effects.set("hertz_exponent", 1.0 / 3.0).unwrap();
     let r = run(&truth, &Grid::paper(), 1.0, 12);
     assert!(r.named_effects.is_empty(), "named {:?}", r.named_effects);
@@ -214,7 +214,7 @@ fn hertz_contact_on_the_ceramic_contact_is_below_noise_and_nothing_is_named() {
 #[test]
 fn negative_control_without_hidden_effects_names_nothing() {
     for (noise, seed) in [(1.0, 21), (2.0, 22)] {
-        let r = run(&Params::prototype(), &Grid::paper(), noise, seed);
+        let r = run(&Params::heavy_slider(), &Grid::paper(), noise, seed);
         eprintln!(
             "NEGATIVE noise {noise} %: gap {:.4}, residual/noise variance {:.2}, named {:?}",
             r.gap_before, r.consistency_before, r.named_effects
@@ -229,7 +229,7 @@ fn negative_control_without_hidden_effects_names_nothing() {
 
 #[test]
 fn two_hidden_effects_are_both_named() {
-    let mut truth = Params::prototype();
+    let mut truth = Params::heavy_slider();
     truth.effects.set("rail_coulomb_n", 0.5).unwrap();
     truth.effects.set("rolloff_corner_hz", 2500.0).unwrap();
     let r = run(&truth, &Grid::paper(), 1.0, 31);
@@ -245,7 +245,7 @@ fn two_hidden_effects_are_both_named() {
 /// both just bend the speed between the two frequencies: the grid cannot separate them.
 #[test]
 fn an_inseparable_pair_is_reported_as_one_ambiguity_group_with_the_true_effect() {
-    let mut truth = Params::prototype();
+    let mut truth = Params::heavy_slider();
     truth.effects.set("stribeck_rise", 1.5).unwrap();
     let grid = Grid {
         preloads_n: vec![8.0, 11.0, 14.0],
@@ -292,7 +292,8 @@ fn an_unknown_effect_in_the_library_is_an_error() {
             velocity_mm_s: 40.0 - 4.0 * i as f64,
         })
         .collect();
-    let e = analyze(&Params::prototype(), &rows, &opts, &|_, _, _| {}).expect_err("unknown effect refused");
+    let e =
+        analyze(&Params::heavy_slider(), &rows, &opts, &|_, _, _| {}).expect_err("unknown effect refused");
     let text = format!("{e:#}");
     assert_eq!(
         text,
@@ -347,7 +348,7 @@ fn synthesize_behind_lc_filter(
 /// is reported as a partial candidate with the share it explains and where the rest lies.
 #[test]
 fn a_drive_chain_outside_the_library_is_a_partial_candidate_not_a_named_effect() {
-    let truth = Params::prototype();
+    let truth = Params::heavy_slider();
     let rows = synthesize_behind_lc_filter(&truth, &Grid::paper(), 2000.0, 0.8, 41);
     let r = analyze(&perturbed(&truth), &rows, &Options::default(), &|_, _, _| {}).expect("workflow runs");
     signature_line(&r);
@@ -382,7 +383,7 @@ fn a_drive_chain_outside_the_library_is_a_partial_candidate_not_a_named_effect()
 /// drive sense) and is named while the frequency structure stays; the roll-off stays partial.
 #[test]
 fn an_effect_that_clears_its_own_signature_is_named_beside_a_partial_one() {
-    let mut truth = Params::prototype();
+    let mut truth = Params::heavy_slider();
     truth.effects.set("asymmetry_fraction", 0.1).unwrap();
     let rows = synthesize_behind_lc_filter(&truth, &Grid::compact(), 2000.0, 0.8, 43);
     let r = analyze(&perturbed(&truth), &rows, &Options::default(), &|_, _, _| {}).expect("workflow runs");

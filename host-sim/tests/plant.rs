@@ -5,9 +5,16 @@ use host_sim::motor::params::{FrictionModel, Params};
 use host_sim::motor::plant::{steady_speed_m_s, ExternalLoad, Plant, QuadratureSine};
 use host_sim::motor::steady::{OperatingPoint, ThrustModel};
 
+/// The heavy-slider set: a 50 kg slider whose speed does not change within a period, the
+/// constant-speed model's assumption (eq. 19). Light carriages are compared with the model that
+/// knows their inertia (`tests/steady_inertia.rs`).
+fn heavy_slider() -> Params {
+    Params::from_toml(include_str!("../params/heavy-slider.toml")).expect("heavy-slider.toml is valid")
+}
+
 #[test]
 fn plant_steady_speed_within_5_percent_of_the_model_over_the_prototype_grid() {
-    let p = Params::prototype();
+    let p = heavy_slider();
     let mut worst = 0.0f64;
     let mut runs = 0;
     for preload_n in [5.0, 10.0, 16.0, 20.0] {
@@ -63,6 +70,7 @@ fn halving_the_step_changes_the_steady_speed_by_less_than_1_percent() {
 fn undamped_stator_conserves_energy_through_contact_and_flight() {
     let mut p = Params::prototype();
     p.stator.damping_ratio = 0.0;
+    p.stator.preload_damping_ratio = Some(0.0);
     p.contact.damping_ratio = 0.0;
     let mut plant = Plant::new(&p, 10.0);
     plant.set_drive_off(true);
@@ -101,11 +109,12 @@ fn with_the_drive_off_the_slider_does_not_creep() {
         plant.run(&mut drive, 0.2);
         let creep = plant.slider_position_m().abs();
         // LuGre holds on its bristles: pre-sliding displacement stays below the breakaway
-        // deflection μs/σ0; the Coulomb laws hold exactly.
+        // deflection μs/σ0; the Coulomb laws hold on the friction layer's shear spring, which
+        // the load shears by load / kt (Hooke) and no further.
         let allowed = if model == FrictionModel::Lugre {
             p.friction.mu_static / p.friction.lugre_bristle_stiffness_per_m
         } else {
-            1e-12
+            2.0 / p.contact.tangential_stiffness_n_per_m * (1.0 + 1e-6) + 1e-12
         };
         assert!(creep <= allowed, "{model:?}: slider moved {creep:e} m");
     }
@@ -142,20 +151,25 @@ fn static_dynamic_with_equal_coefficients_is_coulomb_and_lugre_comes_close() {
 
 #[test]
 fn mean_contact_force_equals_the_preload_in_steady_operation() {
-    // Momentum balance of eq. (12): over whole periods the mean contact force is F0.
+    // Momentum balance of eq. (12): over whole periods the mean contact force is the mean force
+    // of the preload spring, which the force cell reads. The paper takes that force as F0; the
+    // spring's mean rises a little above its static F0 while the stator vibrates (the stator
+    // rides on the foot's impacts), which the controller sees through the force cell.
     let p = Params::prototype();
     let mut plant = Plant::new(&p, 12.0);
     let mut drive =
         QuadratureSine { voltage_v: 100.0, frequency_hz: 1000.0, direction: 1, mid_v: 50.0, ramp_s: 0.01 };
     plant.run(&mut drive, 0.06);
     let n = (0.01 / plant.step_s()).round() as usize;
-    let mut sum = 0.0;
+    let (mut contact, mut spring) = (0.0, 0.0);
     for _ in 0..n {
         plant.step(&mut drive);
-        sum += plant.contact_force_n();
+        contact += plant.contact_force_n();
+        spring += plant.preload_force_n();
     }
-    let mean = sum / n as f64;
-    assert!((mean - 12.0).abs() < 0.02 * 12.0, "mean contact force {mean} N");
+    let (contact, spring) = (contact / n as f64, spring / n as f64);
+    assert!((contact - spring).abs() < 0.005 * spring, "mean contact {contact} N, preload spring {spring} N");
+    assert!((spring - 12.0).abs() < 0.06 * 12.0, "mean preload spring {spring} N against the static 12 N");
 }
 
 #[test]

@@ -1,4 +1,4 @@
-//! The paper's stator with physical masses (`params/paper-masses.toml`): its modes against the
+//! The paper's stator with physical masses (the default, `params/prototype.toml`): its modes against the
 //! paper, the plant's non-contact response against eq. (5) in closed form, permanent contact
 //! against the model, and the friction layer's shear spring against Hooke's law.
 
@@ -9,7 +9,7 @@ use host_sim::plant_figures::{contact_fraction, free_amplitude_m, full_contact_p
 use std::f64::consts::TAU;
 
 fn paper_masses() -> Params {
-    Params::from_toml(include_str!("../params/paper-masses.toml")).expect("paper-masses.toml is valid")
+    Params::prototype()
 }
 
 #[test]

@@ -5,6 +5,15 @@
 use super::fine::FineStep;
 use super::{Controller, Mode, State};
 
+/// The foot pushes once per drive period, and a light carriage's speed ripples within one: a
+/// stop squeezed into a few periods is over before the loop (one period late, speed measured
+/// over periods) can follow it, and a 1 kg carriage braked at its full stall thrust overshot
+/// 1 mm by 470 nm. Spread over this many periods it stops within a count; a heavy carriage's
+/// stall-limited braking is gentler than this anyway.
+const BRAKE_MIN_DRIVE_PERIODS: f32 = 20.0;
+/// Floor of the braking limit (nm/s²) while the model has no speed yet.
+const MIN_BRAKE_NM_S2: f32 = 1.0e6;
+
 impl Controller {
     pub(super) fn regulate(&mut self) {
         let mut v_max = self.speed_limit_nm_s();
@@ -87,9 +96,11 @@ impl Controller {
         (t.speed_at_load_mm_s(load) * 1e6 * self.cfg.speed_fraction).min(self.cfg.velocity_max_nm_s)
     }
 
-    /// Braking limit: the model's (below) within the user's deceleration limit.
+    /// Braking limit: the model's (below) within the user's deceleration limit, and spread over
+    /// at least [`BRAKE_MIN_DRIVE_PERIODS`] drive periods from the profile's top speed.
     pub(super) fn accel_limit_nm_s2(&self) -> f32 {
-        self.model_brake_nm_s2().min(self.cfg.decel_max_nm_s2)
+        let spread = self.speed_limit_nm_s() * self.cfg.drive_freq_hz / BRAKE_MIN_DRIVE_PERIODS;
+        self.model_brake_nm_s2().min(self.cfg.decel_max_nm_s2).min(spread.max(MIN_BRAKE_NM_S2))
     }
 
     /// The model's braking: reverse drive at full voltage brakes with at least the stall force.

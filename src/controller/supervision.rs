@@ -47,17 +47,28 @@ impl Controller {
             // Open-loop motion: no reference to follow, no stall judgement.
             return;
         }
-        let err = (self.profile.position_nm() - self.position_nm()) as f32;
-        self.max_following_error_nm = self.max_following_error_nm.max(err.abs());
-        if err.abs() > self.cfg.following_error_limit_nm {
-            return self.trip(FaultCode::FollowingError);
-        }
         // Stall/slip: the foot is driven hard but the slider does not move the driven way
         // (commanded foot speed against encoder speed).
         let dir = f32::from(self.generator.direction());
         let driving = matches!(self.mode, Mode::Coarse) && self.drive_v > 0.5 * self.cfg.max_drive_v;
         let foot_speed = self.cached_limits().map_or(0.0, |(_, v0)| v0 * 1e6);
-        if driving && dir * self.speed_nm_s < 0.1 * foot_speed {
+        let not_following = driving && dir * self.speed_nm_s < 0.1 * foot_speed;
+        let err = (self.profile.position_nm() - self.position_nm()) as f32;
+        self.max_following_error_nm = self.max_following_error_nm.max(err.abs());
+        if err.abs() > self.cfg.following_error_limit_nm {
+            // A light carriage under a load above the stall force is dragged back fast enough
+            // to exceed the following error before the stall timer runs out: with the full
+            // drive pushing towards the reference and the slider not going that way, the cause
+            // is a stall.
+            let full_drive_towards = self.drive_v >= 0.95 * self.cfg.max_drive_v && dir * err > 0.0;
+            let code = if not_following && full_drive_towards {
+                FaultCode::Stall
+            } else {
+                FaultCode::FollowingError
+            };
+            return self.trip(code);
+        }
+        if not_following {
             // Sliding backwards under full drive is the clearest sign: count it five times faster.
             // (only at full drive: below it the controller may still be finding the load).
             let backwards =

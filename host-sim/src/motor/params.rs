@@ -12,6 +12,9 @@ use std::path::Path;
 
 /// The prototype parameter set shipped with the project.
 pub const PROTOTYPE_TOML: &str = include_str!("../../params/prototype.toml");
+/// The heavy-slider set (8 kg counterweight, 50 kg slider): the constant-speed model's regime,
+/// where the model-gap workflow's base model holds (`params/heavy-slider.toml`).
+pub const HEAVY_SLIDER_TOML: &str = include_str!("../../params/heavy-slider.toml");
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -64,8 +67,22 @@ pub struct Stator {
     pub normal_force_ratio: f64,
     /// λ of eq. (1): tangential foot displacement per metre of summed stack stroke.
     pub tangential_scale: f64,
-    /// Damping ratio of the stator's structural modes (across `k1` and `k2`).
+    /// Damping ratio of the stator's structural modes (across `k1`, and across `k2` unless
+    /// `preload_damping_ratio` is given).
     pub damping_ratio: f64,
+    /// Damping ratio of the stator's rigid-body mode on the preload spring `k2` (the stator's
+    /// guide and the spring mount). Absent: `damping_ratio`. The paper takes the preload as a
+    /// constant force (eq. 12); a lightly damped mode here rings between the foot's impacts and
+    /// moves the contact arc off the foot's peak speed (see `host-sim trace`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub preload_damping_ratio: Option<f64>,
+}
+
+impl Stator {
+    /// Damping ratio of the mode on the preload spring.
+    pub fn preload_mode_damping_ratio(&self) -> f64 {
+        self.preload_damping_ratio.unwrap_or(self.damping_ratio)
+    }
 }
 
 /// Foot/slider normal contact, eq. (10).
@@ -143,6 +160,11 @@ impl Params {
         Self::from_toml(PROTOTYPE_TOML).expect("params/prototype.toml is valid")
     }
 
+    /// The heavy-slider set ([`HEAVY_SLIDER_TOML`]).
+    pub fn heavy_slider() -> Self {
+        Self::from_toml(HEAVY_SLIDER_TOML).expect("params/heavy-slider.toml is valid")
+    }
+
     pub fn from_toml(text: &str) -> Result<Self> {
         let p: Params = toml::from_str(text).map_err(|e| {
             // One line: "line L, column C: message" instead of toml's multi-line excerpt.
@@ -204,6 +226,7 @@ impl Params {
         let non_negative = [
             ("stator.flexure_stiffness_n_per_m", self.stator.flexure_stiffness_n_per_m),
             ("stator.damping_ratio", self.stator.damping_ratio),
+            ("stator.preload_damping_ratio", self.stator.preload_mode_damping_ratio()),
             ("contact.damping_ratio", self.contact.damping_ratio),
             ("contact.tangential_stiffness_n_per_m", self.contact.tangential_stiffness_n_per_m),
             ("friction.viscous_n_s_per_m", self.friction.viscous_n_s_per_m),

@@ -68,9 +68,10 @@ fn state_matrix(p: &Params, contact: Option<(f64, f64)>) -> SMatrix<f64, 6, 6> {
     let k1 = p.k1_n_per_m();
     let k2 = p.stator.preload_spring_n_per_m;
     let zeta = p.stator.damping_ratio;
-    // Structural damping: each spring gets the dashpot of its own mode's damping ratio.
+    // Structural damping: each spring gets the dashpot of its own mode's damping ratio (the
+    // preload spring's may differ: the stator's guide and spring mount).
     let c1 = 2.0 * zeta * (k1 * m1 * m2 / (m1 + m2)).sqrt();
-    let c2 = 2.0 * zeta * (k2 * (m1 + m2)).sqrt();
+    let c2 = 2.0 * p.stator.preload_mode_damping_ratio() * (k2 * (m1 + m2)).sqrt();
     let (kk, cc) = contact.unwrap_or((0.0, 0.0));
     let mut a = SMatrix::<f64, 6, 6>::zeros();
     a[(0, 1)] = 1.0;
@@ -95,6 +96,7 @@ fn state_matrix(p: &Params, contact: Option<(f64, f64)>) -> SMatrix<f64, 6, 6> {
 pub fn stator_modes_hz(p: &Params, with_contact: bool) -> [f64; 2] {
     let mut undamped = p.clone();
     undamped.stator.damping_ratio = 0.0;
+    undamped.stator.preload_damping_ratio = Some(0.0);
     let contact = with_contact.then_some((p.contact.stiffness_n_per_m, 0.0));
     let a = state_matrix(&undamped, contact).fixed_view::<4, 4>(0, 0).into_owned();
     let mut f: Vec<f64> =
