@@ -847,20 +847,18 @@ pub fn analyze(
     })
 }
 
-#[derive(clap::Args, Debug)]
-pub struct GapArgs {
+/// What `host-sim gap` is asked for (the workflow's thresholds are [`Options`]).
+#[derive(Debug, Clone)]
+pub struct GapOptions {
     /// Measured steady operating points (CSV: preload_n,voltage_v,frequency_hz,load_n,direction,velocity_mm_s).
-    #[arg(long, value_name = "FILE.csv")]
     pub measured: PathBuf,
     /// Directory for the report, plots and the updated parameter file.
-    #[arg(long, value_name = "DIR", default_value = "gap-report")]
     pub out: PathBuf,
     /// Print one JSON object instead of the summary.
-    #[arg(long)]
     pub json: bool,
 }
 
-pub fn run(args: GapArgs, params: &Params) -> Result<()> {
+pub fn run(args: GapOptions, params: &Params) -> Result<()> {
     let rows = crate::gap::measured_csv::read(&args.measured)?;
     // The report directory before the work, so a bad path costs nothing.
     crate::check::output_dir("--out", &args.out)?;
