@@ -184,3 +184,34 @@ impl From<FrictionArg> for FrictionModel {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::pil::FaultArg;
+    use super::*;
+    use clap::ValueEnum;
+    use host_sim::harness::pil::FaultCase;
+
+    /// Each mirror has one flag value per library value: its `From` is one-to-one, and the
+    /// matches below (exhaustive over the library's enums) stop compiling when the library gains a
+    /// value the CLI cannot name.
+    #[test]
+    fn every_library_value_has_one_flag_value() {
+        let friction = |m: FrictionModel| match m {
+            FrictionModel::Coulomb => FrictionArg::Coulomb,
+            FrictionModel::StaticDynamic => FrictionArg::StaticDynamic,
+            FrictionModel::Lugre => FrictionArg::Lugre,
+        };
+        for a in FrictionArg::value_variants() {
+            assert_eq!(friction(FrictionModel::from(*a)), *a);
+        }
+        let fault = |f: FaultCase| match f {
+            FaultCase::EncoderJump => FaultArg::EncoderJump,
+            FaultCase::PreloadLoss => FaultArg::PreloadLoss,
+            FaultCase::Stall => FaultArg::Stall,
+        };
+        for a in FaultArg::value_variants() {
+            assert_eq!(fault(FaultCase::from(*a)), *a);
+        }
+    }
+}

@@ -6,7 +6,7 @@
 //! error plus a floor, so near-stall points are not noise-free). Stalled points read 0.
 
 use crate::gap::measured_csv::{to_csv_string, MeasuredRow};
-use crate::motor::effects::{Condition, EffectModel, Effects};
+use crate::motor::effects::{Condition, Effect, EffectModel, Effects};
 use crate::motor::params::Params;
 use crate::motor::plant::steady_speed_m_s;
 use anyhow::{anyhow, bail, Context, Result};
@@ -144,14 +144,14 @@ pub fn parse_effect_spec(spec: &str, effects: &mut Effects) -> Result<()> {
     let (name, rest) = spec
         .split_once(':')
         .ok_or_else(|| anyhow!("--effect '{spec}': expected NAME:param=value[,param=value]"))?;
-    let name = crate::motor::effects::effect_name(name).map_err(|e| anyhow!("--effect '{spec}': {e}"))?;
+    let effect: Effect = name.parse().map_err(|e| anyhow!("--effect '{spec}': {e}"))?;
     for kv in rest.split(',') {
         let (k, v) = kv
             .split_once('=')
             .ok_or_else(|| anyhow!("--effect '{spec}': expected param=value, got '{kv}'"))?;
         let (k, v) = (k.trim(), v.trim());
-        if !crate::motor::effects::PARAM_NAMES.iter().any(|(e, n)| *e == name && *n == k) {
-            bail!("--effect '{spec}': '{k}' is not a parameter of {name}");
+        if !effect.params().contains(&k) {
+            bail!("--effect '{spec}': '{k}' is not a parameter of {effect}");
         }
         let value: f64 = v.parse().map_err(|_| anyhow!("--effect '{spec}': '{v}' is not a number"))?;
         effects.set(k, value)?;
@@ -238,7 +238,7 @@ pub fn run(args: MeasureOptions, params: &Params) -> Result<()> {
     let hidden = p.effects.active();
     let mut text = format!(
         "# host-sim measure: plant with hidden effects [{}], noise {} %, seed {}\n",
-        hidden.join(", "),
+        hidden.iter().map(|e| e.name()).collect::<Vec<_>>().join(", "),
         args.noise_pct,
         args.seed
     );
