@@ -165,84 +165,16 @@ impl Effect {
         Effect::HertzContact,
     ];
 
-    /// The one table of the effects' names, parameters, signatures and fitted parameters.
+    /// What the library knows of this effect: its row of the one table below.
     pub const fn info(self) -> &'static EffectInfo {
-        use Axis::*;
         match self {
-            Effect::RailFriction => &EffectInfo {
-                name: "rail_friction",
-                params: &["rail_coulomb_n", "rail_viscous_n_s_per_m"],
-                // −c·sign(v) − b·v: the slider's speed (set by the load) and its sign (the drive
-                // sense).
-                signature: &[Load, Direction],
-                fit: &[FitParam {
-                    name: "rail_coulomb_n",
-                    lo: 0.0,
-                    hi: 10.0,
-                    zero: 0.0,
-                    starts: &[0.1, 0.6],
-                }],
-            },
-            Effect::AssemblyAsymmetry => &EffectInfo {
-                name: "assembly_asymmetry",
-                params: &["asymmetry_fraction"],
-                // Xc·(1 + a·d): the drive sense only.
-                signature: &[Direction],
-                fit: &[FitParam {
-                    name: "asymmetry_fraction",
-                    lo: -0.5,
-                    hi: 0.5,
-                    zero: 0.0,
-                    starts: &[-0.05, 0.05],
-                }],
-            },
-            Effect::PreloadDependentFriction => &EffectInfo {
-                name: "preload_dependent_friction",
-                params: &["mu_drop_per_n", "knee_preload_n"],
-                // μ/(1 + s·max(0, F0 − Fk)): the static preload only.
-                signature: &[Preload],
-                fit: &[
-                    FitParam { name: "mu_drop_per_n", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.02] },
-                    // The workflow starts the knee between the measured preloads instead.
-                    FitParam { name: "knee_preload_n", lo: 0.0, hi: 60.0, zero: 12.0, starts: &[12.0] },
-                ],
-            },
-            Effect::StribeckFriction => &EffectInfo {
-                name: "stribeck_friction",
-                params: &["stribeck_rise", "stribeck_speed_m_s"],
-                // μ(slip), slip = ω·X·cos φ − v: the foot's speed (voltage × frequency) and the
-                // slider's (the load).
-                signature: &[Voltage, Frequency, Load],
-                fit: &[FitParam { name: "stribeck_rise", lo: 0.0, hi: 5.0, zero: 0.0, starts: &[0.2, 1.0] }],
-            },
-            Effect::AmplifierRolloff => &EffectInfo {
-                name: "amplifier_rolloff",
-                params: &["rolloff_corner_hz"],
-                // Gain 1/√(1 + (f/fc)²) on the drive: the frequency only.
-                signature: &[Frequency],
-                // Fitted as q = (1 kHz / fc)² (q = 0: no roll-off); `rolloff_corner_hz` from it.
-                fit: &[FitParam { name: "rolloff_q", lo: 0.0, hi: 4.0, zero: 0.0, starts: &[0.05, 0.4] }],
-            },
-            Effect::StatorResonance => &EffectInfo {
-                name: "stator_resonance",
-                params: &["resonance_strength", "resonance_hz", "resonance_damping_ratio"],
-                // Gain |1 + k·(H(jω) − 1)| on the drive: the frequency only.
-                signature: &[Frequency],
-                fit: &[FitParam {
-                    name: "resonance_strength",
-                    lo: 0.0,
-                    hi: 1.0,
-                    zero: 0.0,
-                    starts: &[0.05, 0.3],
-                }],
-            },
-            Effect::HertzContact => &EffectInfo {
-                name: "hertz_contact",
-                params: &["hertz_exponent", "hertz_ref_preload_n"],
-                // kc·(F0/Fref)ⁿ: the static preload only.
-                signature: &[Preload],
-                fit: &[FitParam { name: "hertz_exponent", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.1, 0.4] }],
-            },
+            Effect::RailFriction => &RAIL_FRICTION,
+            Effect::AssemblyAsymmetry => &ASSEMBLY_ASYMMETRY,
+            Effect::PreloadDependentFriction => &PRELOAD_DEPENDENT_FRICTION,
+            Effect::StribeckFriction => &STRIBECK_FRICTION,
+            Effect::AmplifierRolloff => &AMPLIFIER_ROLLOFF,
+            Effect::StatorResonance => &STATOR_RESONANCE,
+            Effect::HertzContact => &HERTZ_CONTACT,
         }
     }
 
@@ -271,6 +203,71 @@ impl Effect {
         Effect::ALL.into_iter().find(|e| e.params().contains(&param))
     }
 }
+
+// The table of the effects: name, file parameters, signature (the comment says why), fitted
+// parameters.
+
+const RAIL_FRICTION: EffectInfo = EffectInfo {
+    name: "rail_friction",
+    params: &["rail_coulomb_n", "rail_viscous_n_s_per_m"],
+    // −c·sign(v) − b·v: the slider's speed (set by the load) and its sign (the drive sense).
+    signature: &[Axis::Load, Axis::Direction],
+    fit: &[FitParam { name: "rail_coulomb_n", lo: 0.0, hi: 10.0, zero: 0.0, starts: &[0.1, 0.6] }],
+};
+
+const ASSEMBLY_ASYMMETRY: EffectInfo = EffectInfo {
+    name: "assembly_asymmetry",
+    params: &["asymmetry_fraction"],
+    // Xc·(1 + a·d): the drive sense only.
+    signature: &[Axis::Direction],
+    fit: &[FitParam { name: "asymmetry_fraction", lo: -0.5, hi: 0.5, zero: 0.0, starts: &[-0.05, 0.05] }],
+};
+
+const PRELOAD_DEPENDENT_FRICTION: EffectInfo = EffectInfo {
+    name: "preload_dependent_friction",
+    params: &["mu_drop_per_n", "knee_preload_n"],
+    // μ/(1 + s·max(0, F0 − Fk)): the static preload only.
+    signature: &[Axis::Preload],
+    fit: &[
+        FitParam { name: "mu_drop_per_n", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.02] },
+        // The workflow starts the knee between the measured preloads instead.
+        FitParam { name: "knee_preload_n", lo: 0.0, hi: 60.0, zero: 12.0, starts: &[12.0] },
+    ],
+};
+
+const STRIBECK_FRICTION: EffectInfo = EffectInfo {
+    name: "stribeck_friction",
+    params: &["stribeck_rise", "stribeck_speed_m_s"],
+    // μ(slip), slip = ω·X·cos φ − v: the foot's speed (voltage × frequency) and the slider's (the
+    // load).
+    signature: &[Axis::Voltage, Axis::Frequency, Axis::Load],
+    fit: &[FitParam { name: "stribeck_rise", lo: 0.0, hi: 5.0, zero: 0.0, starts: &[0.2, 1.0] }],
+};
+
+const AMPLIFIER_ROLLOFF: EffectInfo = EffectInfo {
+    name: "amplifier_rolloff",
+    params: &["rolloff_corner_hz"],
+    // Gain 1/√(1 + (f/fc)²) on the drive: the frequency only.
+    signature: &[Axis::Frequency],
+    // Fitted as q = (1 kHz / fc)² (q = 0: no roll-off); `rolloff_corner_hz` follows from it.
+    fit: &[FitParam { name: "rolloff_q", lo: 0.0, hi: 4.0, zero: 0.0, starts: &[0.05, 0.4] }],
+};
+
+const STATOR_RESONANCE: EffectInfo = EffectInfo {
+    name: "stator_resonance",
+    params: &["resonance_strength", "resonance_hz", "resonance_damping_ratio"],
+    // Gain |1 + k·(H(jω) − 1)| on the drive: the frequency only.
+    signature: &[Axis::Frequency],
+    fit: &[FitParam { name: "resonance_strength", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.05, 0.3] }],
+};
+
+const HERTZ_CONTACT: EffectInfo = EffectInfo {
+    name: "hertz_contact",
+    params: &["hertz_exponent", "hertz_ref_preload_n"],
+    // kc·(F0/Fref)ⁿ: the static preload only.
+    signature: &[Axis::Preload],
+    fit: &[FitParam { name: "hertz_exponent", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.1, 0.4] }],
+};
 
 /// An unknown name is an error that names it and the known ones, on one line. Every effect name
 /// a user gives goes through here.
