@@ -2,7 +2,8 @@
 //!
 //! Parameter vector: `[ln(μ/μ0), ln(λ/λ0), ln(ρ/ρ0)]` (friction coefficient, tangential and normal
 //! amplitude scale factors of the base file) followed by each included effect's fitted
-//! parameters ([`Effect::fit_params`]). Levenberg–Marquardt with box bounds, forward-difference Jacobian.
+//! parameters ([`Effect::fit_params`]). Levenberg–Marquardt with box bounds, forward-difference
+//! Jacobian.
 
 use crate::gap::measured_csv::MeasuredRow;
 use crate::motor::effects::{model_speed_m_s, Condition, Effect, Effects};

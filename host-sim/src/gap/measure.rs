@@ -170,12 +170,15 @@ pub struct MeasureOptions {
     pub seed: u64,
     /// Grid of operating points: `paper` (300 rows) or `compact` (192 rows).
     pub grid: String,
-    /// Overrides of the grid's preloads (N), voltages (V peak-to-peak), frequencies (Hz), loads
-    /// (fractions of the stall force at each drive point, 0 to <1) and drive senses (1, -1).
+    /// Instead of the grid's preloads (N).
     pub preloads_n: Option<Vec<f64>>,
+    /// Instead of the grid's voltages (V peak-to-peak).
     pub voltages_v: Option<Vec<f64>>,
+    /// Instead of the grid's frequencies (Hz).
     pub frequencies_hz: Option<Vec<f64>>,
+    /// Instead of the grid's loads, as fractions of the stall force at each drive point (0 to <1).
     pub load_fractions: Option<Vec<f64>>,
+    /// Instead of the grid's drive senses (1, -1 or both).
     pub directions: Option<Vec<i8>>,
     /// Output CSV file.
     pub out: PathBuf,

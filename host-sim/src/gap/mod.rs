@@ -272,7 +272,7 @@ fn base_starts(n: usize) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// Starting points for `model + name` from a fit of `model` (its x) and the candidate's starts.
+/// Starting points for `model + effect` from a fit of `model` (its x) and the effect's starts.
 fn candidate_starts(x0: &[f64], effect: Effect, data: &Data) -> Vec<Vec<f64>> {
     let defs = effect.fit_params();
     let mut starts = Vec::new();
@@ -635,23 +635,23 @@ pub fn analyze(
         let cv_without = cv_rms(&state.model, &data, &state.fit.x, opts.folds);
         let mut cands: Vec<Candidate> = todo
             .par_iter()
-            .map(|&name| {
-                let sc = score(&state, name, &data);
+            .map(|&effect| {
+                let sc = score(&state, effect, &data);
                 let mut m = state.model.clone();
-                m.effects.push(name);
-                let starts = candidate_starts(&state.fit.x, name, &data);
+                m.effects.push(effect);
+                let starts = candidate_starts(&state.fit.x, effect, &data);
                 let f = lm_fit(&m, &data, &all, &starts, 60);
-                let k = name.fit_params().len() as f64;
+                let k = effect.fit_params().len() as f64;
                 let lr = (state.fit.ssr - f.ssr) / (state.s * state.s);
                 let cv_with = cv_rms(&m, &data, &f.x, opts.folds);
                 let pred = m.predict(&f.x, &data, &all);
                 let structure =
-                    axis_structure(&data, &f.resid, state.s, opts.signature_alpha, name.signature());
+                    axis_structure(&data, &f.resid, state.s, opts.signature_alpha, effect.signature());
                 let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 progress(&label, d, todo.len());
                 Candidate {
-                    name: name.to_string(),
-                    effect: name,
+                    name: effect.to_string(),
+                    effect,
                     round,
                     score: sc,
                     score_rank: 0,
@@ -663,7 +663,7 @@ pub fn analyze(
                     accepted: false,
                     partial: false,
                     structure,
-                    params: effect_named_params(&m, &f, name, state.s),
+                    params: effect_named_params(&m, &f, effect, state.s),
                     fit_x: f.x.clone(),
                     pred,
                 }
