@@ -1,161 +1,16 @@
 //! `host-sim`: the motor on your desk. See `host-sim --help`.
 
+mod cli;
+
 use anyhow::{bail, Result};
-use clap::{Parser, Subcommand};
+use clap::Parser;
+use cli::{Cli, Command};
 use host_sim::harness::moves;
-use host_sim::motor::params::{FrictionModel, Params};
+use host_sim::motor::params::Params;
 use host_sim::motor::steady::OperatingPoint;
 use host_sim::{check, curve, paper, plot};
 use std::io::Write;
-use std::path::PathBuf;
 use std::process::ExitCode;
-
-#[derive(Parser)]
-#[command(name = "host-sim", version, about = "Simulator of the non-resonant shaking-beam piezo motor")]
-struct Cli {
-    /// Parameter file (TOML); the compiled-in prototype set when absent.
-    #[arg(long, global = true, value_name = "FILE")]
-    params: Option<PathBuf>,
-    /// Moving mass of the slider and its payload (kg); overrides the file's `slider.mass_kg`.
-    #[arg(long, global = true, value_name = "KG", allow_negative_numbers = true)]
-    slider_mass_kg: Option<f64>,
-    #[command(subcommand)]
-    command: Command,
-}
-
-#[derive(Subcommand)]
-enum Command {
-    /// Thrust–velocity characteristic: steady-state model and time-domain plant side by side.
-    Curve {
-        #[command(flatten)]
-        point: PointArgs,
-        /// Number of load points from 0 to 90 % of stall.
-        #[arg(long, default_value_t = 8)]
-        points: usize,
-        /// Friction law of the time-domain plant.
-        #[arg(long, value_enum)]
-        friction: Option<FrictionModel>,
-        /// Print one JSON object instead of the table.
-        #[arg(long)]
-        json: bool,
-        /// Also draw the curve to this SVG file.
-        #[arg(long, value_name = "FILE.svg")]
-        plot: Option<PathBuf>,
-    },
-    /// The paper's figures (physics.md §5, in ../shared/ beside the checkout): theirs, ours, the
-    /// band we hold, pass/fail.
-    Paper {
-        /// Print one JSON array of rows {name, paper, ours, unit, tolerance, pass, plant,
-        /// plant_pass}: `paper` is the paper's figure as text, `ours` the model's value in `unit`,
-        /// `tolerance` the band we hold, `plant`/`plant_pass` only where measured on the plant.
-        #[arg(long)]
-        json: bool,
-        /// Evaluate the steady-state model and the stator's modes only (skip the plant runs).
-        #[arg(long)]
-        model_only: bool,
-    },
-    /// One drive period of the plant, sample by sample: foot normal and tangential motion, contact
-    /// and friction force, foot and slider speed (after the plant has settled at the drive point).
-    Trace {
-        #[command(flatten)]
-        point: PointArgs,
-        /// Constant load opposing the motion (N), as a hanging weight.
-        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-        load_n: f64,
-        /// Trace these slider masses side by side (kg, comma-separated) instead of the file's.
-        #[arg(long, value_delimiter = ',', value_name = "KG,KG,...", allow_negative_numbers = true)]
-        masses_kg: Vec<f64>,
-        /// Print one JSON object (every sample) instead of the summary.
-        #[arg(long)]
-        json: bool,
-        /// Also draw the period to this SVG file.
-        #[arg(long, value_name = "FILE.svg")]
-        plot: Option<PathBuf>,
-    },
-    /// One closed-loop move from 0: the firmware's controller against the plant.
-    Move {
-        /// Target position (µm).
-        #[arg(long, allow_negative_numbers = true)]
-        to_um: f64,
-        /// Preload force F0 (N).
-        #[arg(long, default_value_t = 16.0, allow_negative_numbers = true)]
-        preload_n: f64,
-        /// Constant load opposing the motion (N), as a hanging weight.
-        #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
-        load_n: f64,
-        /// Switch the thrust-model feedforward off (plain feedback).
-        #[arg(long)]
-        no_feedforward: bool,
-        /// Tell the controller the load beforehand (otherwise its observer finds it while moving).
-        #[arg(long)]
-        load_known: bool,
-        /// Print one JSON object (settle_time_s, final_error_nm, overshoot_nm, slide_back_nm,
-        /// max_following_error_um, fault, ...) instead of the summary.
-        #[arg(long)]
-        json: bool,
-        /// Also draw position, reference and drive voltage against time to this SVG file.
-        #[arg(long, value_name = "FILE.svg")]
-        plot: Option<PathBuf>,
-    },
-    /// The main job: a scripted closed-loop sequence (long move, 10 µm / 1 µm / 100 nm steps, a
-    /// move against 2 N, a preload change while holding, an out-of-window preload refused),
-    /// printed as a table and drawn to demo.svg (ignored by git); then the thrust–velocity
-    /// characteristic.
-    Demo {
-        /// Where to draw the sequence (position, reference, drive voltage against time).
-        #[arg(long, value_name = "FILE.svg", default_value = "demo.svg")]
-        plot: PathBuf,
-    },
-    /// Processor in the loop: one closed-loop move with the control core running on an emulated
-    /// Cortex-M4F (QEMU) against the plant; instruction counts per tick and per state, and every
-    /// period whose outputs differ from the host build's.
-    Pil(host_sim::harness::pil::PilArgs),
-    /// Regenerate every figure in docs/ and every table of the README from the code (the README's
-    /// marked tables are rewritten in place); `--check` compares instead and fails on drift.
-    ReadmeFigures(host_sim::readme_figures::ReadmeFiguresArgs),
-    /// Print the firmware's baked motor table for the parameter file, as Rust source:
-    /// `host-sim firmware-table > src/motor_table.rs` after changing the motor's parameters.
-    FirmwareTable,
-    /// The virtual controller: the core against the plant in real time, speaking PI GCS 2.0 over
-    /// TCP or a pty (see the README's UART commands section).
-    Serve(host_sim::virtual_controller::serve::ServeArgs),
-    /// Model-gap workflow: calibrate to measured speeds, name the missing effects, report.
-    Gap(host_sim::gap::GapArgs),
-    /// Synthetic measured data from the plant with hidden effects (the gap workflow's input).
-    Measure(host_sim::gap::measure::MeasureArgs),
-    /// A board (or `serve`) measures its own thrust–speed points over GCS: open-loop bursts,
-    /// written as the gap workflow's CSV.
-    Characterize(host_sim::virtual_controller::characterize::CharacterizeArgs),
-}
-
-#[derive(clap::Args)]
-struct PointArgs {
-    /// Preload force F0 (N).
-    #[arg(long, default_value_t = 16.0, allow_negative_numbers = true)]
-    preload_n: f64,
-    /// Peak-to-peak stack voltage (V); 100 = the full 0–100 V swing.
-    #[arg(long, default_value_t = 100.0, allow_negative_numbers = true)]
-    voltage_v: f64,
-    /// Drive frequency (Hz).
-    #[arg(long, default_value_t = 1500.0, allow_negative_numbers = true)]
-    frequency_hz: f64,
-    /// Drive direction: +1 or -1 (sign of the quarter-period shift).
-    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
-    direction: i8,
-}
-
-impl PointArgs {
-    fn validate(&self, p: &Params) -> Result<OperatingPoint> {
-        let range = p.amplifier.output_max_v - p.amplifier.output_min_v;
-        let op = OperatingPoint {
-            preload_n: check::preload_n("--preload-n", self.preload_n)?,
-            voltage_v: check::voltage_v("--voltage-v", self.voltage_v, range)?,
-            frequency_hz: check::frequency_hz("--frequency-hz", self.frequency_hz, p.amplifier.dac_rate_hz)?,
-        };
-        check::direction("--direction", i64::from(self.direction))?;
-        Ok(op)
-    }
-}
 
 /// clap's error on one line: its message and tips without the usage block, and a pointer to the
 /// help of the subcommand the user was typing (`host-sim move --help`), not the top level.
@@ -247,7 +102,7 @@ fn run(cli: Cli) -> Result<()> {
                 check::output_file("--plot", path)?;
             }
             if let Some(model) = friction {
-                params.friction.model = model;
+                params.friction.model = model.into();
             }
             let c = curve::compute(&params, op, point.direction, points, 0.9, progress("curve"));
             if let Some(path) = &plot_path {
@@ -413,13 +268,14 @@ fn run(cli: Cli) -> Result<()> {
             }
         }
         Command::Pil(args) => {
-            host_sim::harness::pil::validate(&args)?;
+            let options = args.options();
+            host_sim::harness::pil::validate(&options)?;
             let elf = match &args.elf {
                 Some(path) => path.clone(),
                 None => host_sim::harness::pil::build_target(&mut |what| eprintln!("pil: {what}..."))?,
             };
             eprintln!("pil: running the move with the core on the emulated Cortex-M4F...");
-            let r = host_sim::harness::pil::run(&params, &args, &elf)?;
+            let r = host_sim::harness::pil::run(&params, &options, &elf)?;
             if args.json {
                 println!("{}", serde_json::to_string_pretty(&r)?);
             } else {
@@ -471,9 +327,9 @@ fn run(cli: Cli) -> Result<()> {
                 }
             }
         }
-        Command::Gap(args) => host_sim::gap::run(args, &params)?,
-        Command::Measure(args) => host_sim::gap::measure::run(args, &params)?,
-        Command::Characterize(args) => host_sim::virtual_controller::characterize::run(&args)?,
+        Command::Gap(args) => host_sim::gap::run(args.into(), &params)?,
+        Command::Measure(args) => host_sim::gap::measure::run(args.into(), &params)?,
+        Command::Characterize(args) => host_sim::virtual_controller::characterize::run(&args.into())?,
         Command::Demo { plot: plot_path } => {
             check::output_file("--plot", &plot_path)?;
             println!("Shaking-beam piezo motor, closed loop: the firmware's controller against the plant");
@@ -511,8 +367,8 @@ fn run(cli: Cli) -> Result<()> {
             let c = curve::compute(&params, op, 1, 6, 0.9, progress("curve"));
             print_curve(&c);
         }
-        Command::Serve(args) => host_sim::virtual_controller::serve::run(&params, &args)?,
-        Command::ReadmeFigures(args) => host_sim::readme_figures::run(&args)?,
+        Command::Serve(args) => host_sim::virtual_controller::serve::run(&params, &args.into())?,
+        Command::ReadmeFigures(args) => host_sim::readme_figures::run(&args.into())?,
         Command::FirmwareTable => {
             let source = cli.params.as_ref().map_or_else(
                 || "host-sim/params/prototype.toml".to_string(),

@@ -19,14 +19,13 @@ use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-#[derive(clap::Args, Debug)]
-pub struct ReadmeFiguresArgs {
-    /// Compare with the committed figures and README tables instead of writing them; exit
-    /// non-zero on drift.
-    #[arg(long)]
+/// What `host-sim readme-figures` does.
+#[derive(Debug, Clone)]
+pub struct ReadmeFiguresOptions {
+    /// Compare with the committed figures and README tables instead of writing them (an error on
+    /// drift).
     pub check: bool,
     /// Repository root: where README.md, docs/ and host-sim/ are.
-    #[arg(long, value_name = "DIR", default_value = ".")]
     pub root: PathBuf,
 }
 
@@ -399,7 +398,7 @@ pub fn figure_drift(committed: &str, generated: &str) -> Option<String> {
     None
 }
 
-pub fn run(args: &ReadmeFiguresArgs) -> Result<()> {
+pub fn run(args: &ReadmeFiguresOptions) -> Result<()> {
     let root = &args.root;
     let readme_path = root.join("README.md");
     let readme = std::fs::read_to_string(&readme_path)

@@ -1,11 +1,12 @@
 //! Weighted nonlinear least squares of the steady-state model (with effects) to measured speeds.
 //!
 //! Parameter vector: `[ln(μ/μ0), ln(λ/λ0), ln(ρ/ρ0)]` (friction coefficient, tangential and normal
-//! amplitude scale factors of the base file) followed by each included effect's internal
-//! parameters. Levenberg–Marquardt with box bounds, forward-difference Jacobian.
+//! amplitude scale factors of the base file) followed by each included effect's fitted
+//! parameters ([`Effect::fit_params`]). Levenberg–Marquardt with box bounds, forward-difference
+//! Jacobian.
 
 use crate::gap::measured_csv::MeasuredRow;
-use crate::motor::effects::{model_speed_m_s, Condition, Effects};
+use crate::motor::effects::{model_speed_m_s, Condition, Effect, Effects};
 use crate::motor::params::Params;
 use nalgebra::{DMatrix, DVector};
 
@@ -112,77 +113,32 @@ impl Data {
     }
 }
 
-/// One internal parameter of an effect as the fit sees it.
-#[derive(Debug, Clone, Copy)]
-pub struct ParamDef {
-    pub name: &'static str,
-    pub lo: f64,
-    pub hi: f64,
-    /// The value at which the effect vanishes (score test point).
-    pub zero: f64,
-    pub starts: &'static [f64],
-}
-
-/// The internal parameters of a library effect. Shape parameters not listed here (Stribeck
-/// speed, resonance frequency and damping, Hertz reference preload) keep the base file's values
-/// or their defaults.
-pub fn effect_params(name: &str) -> &'static [ParamDef] {
-    const RAIL: [ParamDef; 1] =
-        [ParamDef { name: "rail_coulomb_n", lo: 0.0, hi: 10.0, zero: 0.0, starts: &[0.1, 0.6] }];
-    const ASYM: [ParamDef; 1] =
-        [ParamDef { name: "asymmetry_fraction", lo: -0.5, hi: 0.5, zero: 0.0, starts: &[-0.05, 0.05] }];
-    const PRELOAD: [ParamDef; 2] = [
-        ParamDef { name: "mu_drop_per_n", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.02] },
-        // Knee starts are replaced by the midpoints between the measured preloads (see `starts`).
-        ParamDef { name: "knee_preload_n", lo: 0.0, hi: 60.0, zero: 12.0, starts: &[12.0] },
-    ];
-    const STRIBECK: [ParamDef; 1] =
-        [ParamDef { name: "stribeck_rise", lo: 0.0, hi: 5.0, zero: 0.0, starts: &[0.2, 1.0] }];
-    // Internal: q = (1 kHz / fc)²; fc = 1 kHz/√q (q = 0: no roll-off).
-    const ROLLOFF: [ParamDef; 1] =
-        [ParamDef { name: "rolloff_q", lo: 0.0, hi: 4.0, zero: 0.0, starts: &[0.05, 0.4] }];
-    const RES: [ParamDef; 1] =
-        [ParamDef { name: "resonance_strength", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.05, 0.3] }];
-    const HERTZ: [ParamDef; 1] =
-        [ParamDef { name: "hertz_exponent", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.1, 0.4] }];
-    match name {
-        "rail_friction" => &RAIL,
-        "assembly_asymmetry" => &ASYM,
-        "preload_dependent_friction" => &PRELOAD,
-        "stribeck_friction" => &STRIBECK,
-        "amplifier_rolloff" => &ROLLOFF,
-        "stator_resonance" => &RES,
-        "hertz_contact" => &HERTZ,
-        _ => &[],
-    }
-}
-
-/// Writes an effect's internal parameters into `effects`.
-pub fn apply_effect(effects: &mut Effects, name: &str, x: &[f64]) {
+/// Writes an effect's fitted parameters ([`Effect::fit_params`]) into `effects`.
+pub fn apply_effect(effects: &mut Effects, effect: Effect, x: &[f64]) {
     let set = |e: &mut Effects, k: &str, v: f64| {
         // Names come from the library table; `set` only fails on unknown names.
         let _ = e.set(k, v);
     };
-    match name {
-        "amplifier_rolloff" => {
+    match effect {
+        Effect::AmplifierRolloff => {
             let q = x[0];
             set(effects, "rolloff_corner_hz", if q > 0.0 { 1000.0 / q.sqrt() } else { 0.0 });
         }
         _ => {
-            for (d, v) in effect_params(name).iter().zip(x) {
+            for (d, v) in effect.fit_params().iter().zip(x) {
                 set(effects, d.name, *v);
             }
         }
     }
 }
 
-/// The named (file) parameters of an effect from its internal ones, for reports.
-pub fn named_values(name: &str, x: &[f64]) -> Vec<(&'static str, f64)> {
-    match name {
-        "amplifier_rolloff" => {
+/// The named (file) parameters of an effect from its fitted ones, for reports.
+pub fn named_values(effect: Effect, x: &[f64]) -> Vec<(&'static str, f64)> {
+    match effect {
+        Effect::AmplifierRolloff => {
             vec![("rolloff_corner_hz", if x[0] > 0.0 { 1000.0 / x[0].sqrt() } else { f64::INFINITY })]
         }
-        _ => effect_params(name).iter().zip(x).map(|(d, v)| (d.name, *v)).collect(),
+        _ => effect.fit_params().iter().zip(x).map(|(d, v)| (d.name, *v)).collect(),
     }
 }
 
@@ -190,7 +146,7 @@ pub fn named_values(name: &str, x: &[f64]) -> Vec<(&'static str, f64)> {
 #[derive(Debug, Clone)]
 pub struct Model {
     pub base: Params,
-    pub effects: Vec<&'static str>,
+    pub effects: Vec<Effect>,
 }
 
 pub const BASE_PARAMS: usize = 3;
@@ -200,25 +156,25 @@ const LOG_BOUND: f64 = 1.0;
 
 impl Model {
     pub fn n_params(&self) -> usize {
-        BASE_PARAMS + self.effects.iter().map(|e| effect_params(e).len()).sum::<usize>()
+        BASE_PARAMS + self.effects.iter().map(|e| e.fit_params().len()).sum::<usize>()
     }
 
     pub fn bounds(&self) -> Vec<(f64, f64)> {
         let mut b = vec![(-LOG_BOUND, LOG_BOUND); BASE_PARAMS];
         for e in &self.effects {
-            b.extend(effect_params(e).iter().map(|d| (d.lo, d.hi)));
+            b.extend(e.fit_params().iter().map(|d| (d.lo, d.hi)));
         }
         b
     }
 
-    /// Offset of effect `name` in the parameter vector.
-    pub fn offset(&self, name: &str) -> Option<usize> {
+    /// Offset of `effect` in the parameter vector.
+    pub fn offset(&self, effect: Effect) -> Option<usize> {
         let mut off = BASE_PARAMS;
         for e in &self.effects {
-            if *e == name {
+            if *e == effect {
                 return Some(off);
             }
-            off += effect_params(e).len();
+            off += e.fit_params().len();
         }
         None
     }
@@ -232,8 +188,8 @@ impl Model {
         p.stator.normal_force_ratio *= x[2].exp();
         let mut off = BASE_PARAMS;
         for e in &self.effects {
-            let k = effect_params(e).len();
-            apply_effect(&mut p.effects, e, &x[off..off + k]);
+            let k = e.fit_params().len();
+            apply_effect(&mut p.effects, *e, &x[off..off + k]);
             off += k;
         }
         p

@@ -6,7 +6,7 @@
 //! error plus a floor, so near-stall points are not noise-free). Stalled points read 0.
 
 use crate::gap::measured_csv::{to_csv_string, MeasuredRow};
-use crate::motor::effects::{Condition, EffectModel, Effects};
+use crate::motor::effects::{Condition, Effect, EffectModel, Effects};
 use crate::motor::params::Params;
 use crate::motor::plant::steady_speed_m_s;
 use anyhow::{anyhow, bail, Context, Result};
@@ -144,14 +144,14 @@ pub fn parse_effect_spec(spec: &str, effects: &mut Effects) -> Result<()> {
     let (name, rest) = spec
         .split_once(':')
         .ok_or_else(|| anyhow!("--effect '{spec}': expected NAME:param=value[,param=value]"))?;
-    let name = crate::motor::effects::effect_name(name).map_err(|e| anyhow!("--effect '{spec}': {e}"))?;
+    let effect: Effect = name.parse().map_err(|e| anyhow!("--effect '{spec}': {e}"))?;
     for kv in rest.split(',') {
         let (k, v) = kv
             .split_once('=')
             .ok_or_else(|| anyhow!("--effect '{spec}': expected param=value, got '{kv}'"))?;
         let (k, v) = (k.trim(), v.trim());
-        if !crate::motor::effects::PARAM_NAMES.iter().any(|(e, n)| *e == name && *n == k) {
-            bail!("--effect '{spec}': '{k}' is not a parameter of {name}");
+        if !effect.params().contains(&k) {
+            bail!("--effect '{spec}': '{k}' is not a parameter of {effect}");
         }
         let value: f64 = v.parse().map_err(|_| anyhow!("--effect '{spec}': '{v}' is not a number"))?;
         effects.set(k, value)?;
@@ -159,41 +159,32 @@ pub fn parse_effect_spec(spec: &str, effects: &mut Effects) -> Result<()> {
     Ok(())
 }
 
-#[derive(clap::Args, Debug)]
-pub struct MeasureArgs {
-    /// Hidden effect, NAME:param=value[,param=value]; repeat for several.
-    #[arg(long = "effect", value_name = "NAME:param=value")]
+/// What `host-sim measure` synthesises: the hidden effects, the noise and the grid.
+#[derive(Debug, Clone)]
+pub struct MeasureOptions {
+    /// Hidden effects, each `NAME:param=value[,param=value]`.
     pub effects: Vec<String>,
     /// Measurement noise, percent of each speed (plus a floor of a quarter of the mean speed).
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub noise_pct: f64,
     /// Random seed of the noise.
-    #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Grid of operating points: `paper` (300 rows) or `compact` (192 rows).
-    #[arg(long, default_value = "paper")]
     pub grid: String,
-    /// Override the grid's preloads (N), comma-separated.
-    #[arg(long, value_delimiter = ',', value_name = "N,N,...")]
+    /// Instead of the grid's preloads (N).
     pub preloads_n: Option<Vec<f64>>,
-    /// Override the grid's voltages (V peak-to-peak).
-    #[arg(long, value_delimiter = ',', value_name = "V,V,...")]
+    /// Instead of the grid's voltages (V peak-to-peak).
     pub voltages_v: Option<Vec<f64>>,
-    /// Override the grid's frequencies (Hz).
-    #[arg(long, value_delimiter = ',', value_name = "HZ,HZ,...")]
+    /// Instead of the grid's frequencies (Hz).
     pub frequencies_hz: Option<Vec<f64>>,
-    /// Override the loads, as fractions of the stall force at each drive point (0 to <1).
-    #[arg(long, value_delimiter = ',', value_name = "F,F,...")]
+    /// Instead of the grid's loads, as fractions of the stall force at each drive point (0 to <1).
     pub load_fractions: Option<Vec<f64>>,
-    /// Override the drive senses (1, -1 or both).
-    #[arg(long, value_delimiter = ',', allow_negative_numbers = true, value_name = "D,D")]
+    /// Instead of the grid's drive senses (1, -1 or both).
     pub directions: Option<Vec<i8>>,
     /// Output CSV file.
-    #[arg(long, value_name = "FILE.csv")]
     pub out: PathBuf,
 }
 
-pub fn run(args: MeasureArgs, params: &Params) -> Result<()> {
+pub fn run(args: MeasureOptions, params: &Params) -> Result<()> {
     use crate::check;
     check::output_file("--out", &args.out)?;
     let mut p = params.clone();
@@ -250,7 +241,7 @@ pub fn run(args: MeasureArgs, params: &Params) -> Result<()> {
     let hidden = p.effects.active();
     let mut text = format!(
         "# host-sim measure: plant with hidden effects [{}], noise {} %, seed {}\n",
-        hidden.join(", "),
+        hidden.iter().map(|e| e.name()).collect::<Vec<_>>().join(", "),
         args.noise_pct,
         args.seed
     );

@@ -15,7 +15,7 @@
 //!   of the weighted residuals; pure noise gives χ² with `levels − 1` degrees of freedom (the
 //!   calibrated level absorbs one). An accepted effect is *named* only when, after the final
 //!   fit, this χ² is below its `1 − α` quantile along every condition of the effect's signature
-//!   ([`crate::motor::effects::signature`]); otherwise it is a *partial candidate*.
+//!   ([`crate::motor::effects::Effect::signature`]); otherwise it is a *partial candidate*.
 
 pub mod chi2;
 pub mod fit;
@@ -24,12 +24,10 @@ pub mod measured_csv;
 pub mod report;
 
 use crate::gap::measured_csv::MeasuredRow;
-use crate::motor::effects::{effect_name, signature, Axis, Condition, EFFECT_NAMES};
+use crate::motor::effects::{Axis, Condition, Effect, EFFECT_NAMES};
 use crate::motor::params::Params;
 use anyhow::{anyhow, bail, Result};
-use fit::{
-    covariance, effect_params, fit as lm_fit, named_values, Data, Fit, Model, BASE_NAMES, BASE_PARAMS,
-};
+use fit::{covariance, fit as lm_fit, named_values, Data, Fit, Model, BASE_NAMES, BASE_PARAMS};
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 use serde::Serialize;
@@ -86,9 +84,9 @@ pub struct NamedParam {
 #[derive(Debug, Clone, Serialize)]
 pub struct Candidate {
     pub name: String,
-    /// The library's name of the effect (the same as `name`).
+    /// The effect (`name` is its name).
     #[serde(skip)]
-    pub effect: &'static str,
+    pub effect: Effect,
     /// Round of the workflow (1 = against the calibrated base model).
     pub round: usize,
     /// Score statistic at zero strength (χ², larger = more of the residual it could explain).
@@ -274,11 +272,11 @@ fn base_starts(n: usize) -> Vec<Vec<f64>> {
         .collect()
 }
 
-/// Starting points for `model + name` from a fit of `model` (its x) and the candidate's starts.
-fn candidate_starts(x0: &[f64], name: &str, data: &Data) -> Vec<Vec<f64>> {
-    let defs = effect_params(name);
+/// Starting points for `model + effect` from a fit of `model` (its x) and the effect's starts.
+fn candidate_starts(x0: &[f64], effect: Effect, data: &Data) -> Vec<Vec<f64>> {
+    let defs = effect.fit_params();
     let mut starts = Vec::new();
-    if name == "preload_dependent_friction" {
+    if effect == Effect::PreloadDependentFriction {
         let mut pre: Vec<f64> = data.conds.iter().map(|c| c.preload_n).collect();
         pre.sort_by(f64::total_cmp);
         pre.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
@@ -315,18 +313,18 @@ fn ratio(fit: &Fit, n: usize, p: usize, s: f64) -> f64 {
     fit.ssr / (n.saturating_sub(p).max(1) as f64) / (s * s)
 }
 
-/// Score statistic of adding `name` to the model at its fit.
-fn score(state: &State, name: &'static str, data: &Data) -> f64 {
+/// Score statistic of adding `effect` to the model at its fit.
+fn score(state: &State, effect: Effect, data: &Data) -> f64 {
     let rows = all_rows(data);
-    let defs = effect_params(name);
+    let defs = effect.fit_params();
     let jb = &state.fit.jac;
     let r = DMatrix::from_column_slice(rows.len(), 1, &state.fit.resid);
     let a = jb.transpose() * jb;
     let Some(a_inv) = a.try_inverse() else { return 0.0 };
     let mut ext = state.model.clone();
-    ext.effects.push(name);
-    let knees: Vec<f64> = if name == "preload_dependent_friction" {
-        candidate_starts(&state.fit.x, name, data).iter().map(|s| s[s.len() - 1]).collect()
+    ext.effects.push(effect);
+    let knees: Vec<f64> = if effect == Effect::PreloadDependentFriction {
+        candidate_starts(&state.fit.x, effect, data).iter().map(|s| s[s.len() - 1]).collect()
     } else {
         vec![0.0]
     };
@@ -387,12 +385,13 @@ fn cv_rms(model: &Model, data: &Data, x0: &[f64], folds: usize) -> f64 {
     (sum / count.max(1) as f64).sqrt()
 }
 
-fn effect_named_params(model: &Model, fit: &Fit, name: &str, s: f64) -> Vec<NamedParam> {
-    let Some(off) = model.offset(name) else { return Vec::new() };
-    let k = effect_params(name).len();
+fn effect_named_params(model: &Model, fit: &Fit, effect: Effect, s: f64) -> Vec<NamedParam> {
+    let Some(off) = model.offset(effect) else { return Vec::new() };
+    let defs = effect.fit_params();
+    let k = defs.len();
     let x = &fit.x[off..off + k];
     let cov = covariance(fit, s);
-    let named = named_values(name, x);
+    let named = named_values(effect, x);
     named
         .iter()
         .enumerate()
@@ -402,10 +401,10 @@ fn effect_named_params(model: &Model, fit: &Fit, name: &str, s: f64) -> Vec<Name
             if let Some(c) = &cov {
                 let grads: Vec<f64> = (0..k)
                     .map(|m| {
-                        let h = 1e-6 * (effect_params(name)[m].hi - effect_params(name)[m].lo);
+                        let h = 1e-6 * (defs[m].hi - defs[m].lo);
                         let mut xp = x.to_vec();
                         xp[m] += h;
-                        (named_values(name, &xp)[j].1 - v) / h
+                        (named_values(effect, &xp)[j].1 - v) / h
                     })
                     .collect();
                 for a in 0..k {
@@ -571,8 +570,8 @@ fn clears_signature(st: &[AxisStructure]) -> bool {
 fn sub_x(from: &Model, x: &[f64], to: &Model) -> Vec<f64> {
     let mut out: Vec<f64> = x[..BASE_PARAMS].to_vec();
     for e in &to.effects {
-        let off = from.offset(e).unwrap_or(BASE_PARAMS);
-        out.extend_from_slice(&x[off..off + effect_params(e).len()]);
+        let off = from.offset(*e).unwrap_or(BASE_PARAMS);
+        out.extend_from_slice(&x[off..off + e.fit_params().len()]);
     }
     out
 }
@@ -588,9 +587,11 @@ pub fn analyze(
     progress: ProgressFn,
 ) -> Result<GapReport> {
     let t0 = std::time::Instant::now();
-    for name in &opts.library {
-        effect_name(name).map_err(|e| anyhow!("effect library: {e}"))?;
-    }
+    let library = opts
+        .library
+        .iter()
+        .map(|name| name.parse::<Effect>().map_err(|e| anyhow!("effect library: {e}")))
+        .collect::<Result<Vec<Effect>>>()?;
     let data = Data::from_rows(rows);
     let n = data.len();
     if n < 8 {
@@ -619,12 +620,11 @@ pub fn analyze(
     let mut candidates_out: Vec<Candidate> = Vec::new();
     let mut ambiguity = Vec::new();
     let mut removed = Vec::new();
-    let library: Vec<&'static str> =
-        opts.library.iter().copied().filter(|e| !base.effects.is_active(e)).collect();
+    let library: Vec<Effect> = library.into_iter().filter(|e| !base.effects.is_active(*e)).collect();
     let mut round = 0;
     while state.model.effects.len() < opts.max_effects && state.ratio >= opts.consistent_ratio {
         round += 1;
-        let todo: Vec<&'static str> =
+        let todo: Vec<Effect> =
             library.iter().copied().filter(|e| !state.model.effects.contains(e)).collect();
         if todo.is_empty() {
             break;
@@ -635,23 +635,23 @@ pub fn analyze(
         let cv_without = cv_rms(&state.model, &data, &state.fit.x, opts.folds);
         let mut cands: Vec<Candidate> = todo
             .par_iter()
-            .map(|&name| {
-                let sc = score(&state, name, &data);
+            .map(|&effect| {
+                let sc = score(&state, effect, &data);
                 let mut m = state.model.clone();
-                m.effects.push(name);
-                let starts = candidate_starts(&state.fit.x, name, &data);
+                m.effects.push(effect);
+                let starts = candidate_starts(&state.fit.x, effect, &data);
                 let f = lm_fit(&m, &data, &all, &starts, 60);
-                let k = effect_params(name).len() as f64;
+                let k = effect.fit_params().len() as f64;
                 let lr = (state.fit.ssr - f.ssr) / (state.s * state.s);
                 let cv_with = cv_rms(&m, &data, &f.x, opts.folds);
                 let pred = m.predict(&f.x, &data, &all);
                 let structure =
-                    axis_structure(&data, &f.resid, state.s, opts.signature_alpha, signature(name));
+                    axis_structure(&data, &f.resid, state.s, opts.signature_alpha, effect.signature());
                 let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 progress(&label, d, todo.len());
                 Candidate {
-                    name: name.to_string(),
-                    effect: name,
+                    name: effect.to_string(),
+                    effect,
                     round,
                     score: sc,
                     score_rank: 0,
@@ -663,7 +663,7 @@ pub fn analyze(
                     accepted: false,
                     partial: false,
                     structure,
-                    params: effect_named_params(&m, &f, name, state.s),
+                    params: effect_named_params(&m, &f, effect, state.s),
                     fit_x: f.x.clone(),
                     pred,
                 }
@@ -719,7 +719,7 @@ pub fn analyze(
                 let mut reduced = model.clone();
                 reduced.effects.retain(|x| *x != e);
                 let f = lm_fit(&reduced, &data, &all, &[sub_x(&model, &fit.x, &reduced)], 60);
-                let k = effect_params(e).len() as f64;
+                let k = e.fit_params().len() as f64;
                 let kept = (f.ssr - fit.ssr) / (state.s * state.s) - k * (n as f64).ln();
                 if kept < opts.min_delta_bic {
                     removed.push(Removed { name: e.to_string(), round, delta_bic_kept: kept });
@@ -744,11 +744,11 @@ pub fn analyze(
         .iter()
         .map(|e| {
             let structure =
-                axis_structure(&data, &state.fit.resid, state.s, opts.signature_alpha, signature(e));
+                axis_structure(&data, &state.fit.resid, state.s, opts.signature_alpha, e.signature());
             SignatureTest { effect: e.to_string(), named: clears_signature(&structure), structure }
         })
         .collect();
-    let failing: Vec<&'static str> =
+    let failing: Vec<Effect> =
         state.model.effects.iter().zip(&signature_tests).filter(|(_, t)| !t.named).map(|(e, _)| *e).collect();
     let mut partial_candidates = Vec::new();
     if !failing.is_empty() {
@@ -768,7 +768,7 @@ pub fn analyze(
             let mut starts = vec![sub_x(&full_model, &full_x, &with)];
             starts.extend(candidate_starts(&fit.x, e, &data));
             let f = lm_fit(&with, &data, &all, &starts, 60);
-            let structure = axis_structure(&data, &f.resid, s, opts.signature_alpha, signature(e));
+            let structure = axis_structure(&data, &f.resid, s, opts.signature_alpha, e.signature());
             let mut above: Vec<&AxisStructure> =
                 structure.iter().filter(|a| !a.consistent_with_noise).collect();
             above.sort_by(|a, b| b.chi2_per_dof.total_cmp(&a.chi2_per_dof));
@@ -803,7 +803,7 @@ pub fn analyze(
     let mut fitted = state.model.params_at(&state.fit.x);
     let mut final_effects = Vec::new();
     for e in &state.model.effects {
-        let params = effect_named_params(&state.model, &state.fit, e, state.s);
+        let params = effect_named_params(&state.model, &state.fit, *e, state.s);
         for np in &params {
             fitted.effects.std_dev.insert(np.name.clone(), np.std_dev);
         }
@@ -847,20 +847,18 @@ pub fn analyze(
     })
 }
 
-#[derive(clap::Args, Debug)]
-pub struct GapArgs {
+/// What `host-sim gap` is asked for (the workflow's thresholds are [`Options`]).
+#[derive(Debug, Clone)]
+pub struct GapOptions {
     /// Measured steady operating points (CSV: preload_n,voltage_v,frequency_hz,load_n,direction,velocity_mm_s).
-    #[arg(long, value_name = "FILE.csv")]
     pub measured: PathBuf,
     /// Directory for the report, plots and the updated parameter file.
-    #[arg(long, value_name = "DIR", default_value = "gap-report")]
     pub out: PathBuf,
     /// Print one JSON object instead of the summary.
-    #[arg(long)]
     pub json: bool,
 }
 
-pub fn run(args: GapArgs, params: &Params) -> Result<()> {
+pub fn run(args: GapOptions, params: &Params) -> Result<()> {
     let rows = crate::gap::measured_csv::read(&args.measured)?;
     // The report directory before the work, so a bad path costs nothing.
     crate::check::output_dir("--out", &args.out)?;

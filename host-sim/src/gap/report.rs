@@ -54,6 +54,22 @@ pub fn write_all(
     Ok(())
 }
 
+/// The cells of a candidate's row that the report's table and the terminal summary share (round,
+/// effect, score, score rank, LR, ΔBIC, CV improvement in %, gap), each formatted once; the
+/// two only pad them differently.
+fn candidate_cells(c: &super::Candidate) -> [String; 8] {
+    [
+        c.round.to_string(),
+        c.name.clone(),
+        format!("{:.1}", c.score),
+        c.score_rank.to_string(),
+        format!("{:.1}", c.lr),
+        format!("{:.1}", c.delta_bic),
+        format!("{:.1}", 100.0 * c.cv_improvement),
+        format!("{:.4}", c.gap),
+    ]
+}
+
 fn fmt_params(c: &super::Candidate) -> String {
     c.params
         .iter()
@@ -142,17 +158,10 @@ pub fn markdown(r: &GapReport, measured: &Path) -> String {
     );
     let _ = writeln!(s, "|---|---|---|---|---|---|---|---|---|---|---|");
     for c in &r.candidates {
+        let [round, name, score, rank, lr, delta_bic, cv, gap] = candidate_cells(c);
         let _ = writeln!(
             s,
-            "| {} | {} | {:.1} | {} | {:.1} | {:.1} | {:.1} % | {:.4} | {:.2} | {} | {} |",
-            c.round,
-            c.name,
-            c.score,
-            c.score_rank,
-            c.lr,
-            c.delta_bic,
-            100.0 * c.cv_improvement,
-            c.gap,
+            "| {round} | {name} | {score} | {rank} | {lr} | {delta_bic} | {cv} % | {gap} | {:.2} | {} | {} |",
             c.consistency,
             if c.accepted {
                 "**yes**"
@@ -325,16 +334,9 @@ pub fn print_summary(r: &GapReport, out: &Path) {
         "round", "effect", "score", "rank", "LR", "ΔBIC", "CV %", "gap"
     );
     for c in &r.candidates {
+        let [round, name, score, rank, lr, delta_bic, cv, gap] = candidate_cells(c);
         println!(
-            "{:<6} {:<28} {:>10.1} {:>5} {:>10.1} {:>10.1} {:>8.1} {:>8.4}  {}{}",
-            c.round,
-            c.name,
-            c.score,
-            c.score_rank,
-            c.lr,
-            c.delta_bic,
-            100.0 * c.cv_improvement,
-            c.gap,
+            "{round:<6} {name:<28} {score:>10} {rank:>5} {lr:>10} {delta_bic:>10} {cv:>8} {gap:>8}  {}{}",
             fmt_params(c),
             if c.accepted {
                 "  <- accepted"

@@ -22,7 +22,7 @@ use std::process::{Child, Stdio};
 use std::time::Duration;
 
 /// A fault to provoke during the move.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FaultCase {
     /// The encoder count jumps by 5000 counts (250 µm) 20 ms into the move.
     EncoderJump,
@@ -32,34 +32,21 @@ pub enum FaultCase {
     Stall,
 }
 
-#[derive(clap::Args, Debug, Clone)]
-pub struct PilArgs {
-    /// Target position (µm).
-    #[arg(long, allow_negative_numbers = true)]
+/// What one PIL run does (`host-sim pil`; where the ELF comes from, the budget and the output
+/// are the CLI's).
+#[derive(Debug, Clone)]
+pub struct PilOptions {
+    /// Target position.
     pub to_um: f64,
-    /// Preload force F0 (N).
-    #[arg(long, default_value_t = 16.0, allow_negative_numbers = true)]
+    /// Preload force F0.
     pub preload_n: f64,
-    /// Constant load opposing the motion (N), as a hanging weight; not told to the controller.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    /// Constant load opposing the motion, as a hanging weight; not told to the controller.
     pub load_n: f64,
-    /// Provoke a fault during the move and check the drive goes safe on the target.
-    #[arg(long, value_enum)]
+    /// A fault to provoke during the move (the drive must go safe on the target).
     pub fault: Option<FaultCase>,
-    /// The target program (default: build `tools/pil` of this checkout and use its ELF).
-    #[arg(long, value_name = "ELF")]
-    pub elf: Option<PathBuf>,
-    /// Exit with an error when the tick's instructions exceed these (mean, max).
-    #[arg(long, num_args = 2, value_names = ["MEAN", "MAX"])]
-    pub budget: Option<Vec<u32>>,
-    /// After the move has settled, also reference on an encoder index 50 µm behind the start
-    /// (GCS `FRF`) and, servo off, step 300 drive cycles open loop back (GCS `XOS`, 80 V,
-    /// 1.5 kHz), so that every state of the tick runs on the target against the plant.
-    #[arg(long)]
+    /// After the move has settled, also reference and step open loop, so that every state of
+    /// the tick runs on the target.
     pub all_states: bool,
-    /// Print one JSON object instead of the summary.
-    #[arg(long)]
-    pub json: bool,
 }
 
 /// Instruction counts of the ticks spent in one state.
@@ -259,7 +246,7 @@ fn is_safe(out: &Outputs, mid: u16) -> bool {
 
 /// The arguments, checked with the same rules and words as every other subcommand (before the
 /// target is built or started).
-pub fn validate(args: &PilArgs) -> Result<()> {
+pub fn validate(args: &PilOptions) -> Result<()> {
     check::position_um("--to-um", args.to_um)?;
     check::preload_n("--preload-n", args.preload_n)?;
     check::load_n("--load-n", args.load_n)?;
@@ -267,7 +254,7 @@ pub fn validate(args: &PilArgs) -> Result<()> {
 }
 
 /// One closed-loop move with the control code on the emulated M4.
-pub fn run(p: &Params, args: &PilArgs, elf: &Path) -> Result<PilResult> {
+pub fn run(p: &Params, args: &PilOptions, elf: &Path) -> Result<PilResult> {
     validate(args)?;
     // The target boots with the firmware's defaults: the plant must be the motor they describe.
     let cfg = controller_config(p);

@@ -100,7 +100,7 @@ pub struct Contact {
     pub tangential_stiffness_n_per_m: f64,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum FrictionModel {
     /// Seed eq. (16): Coulomb with μd and a viscous part εc; stick solved exactly.

@@ -15,46 +15,36 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Duration;
 
-#[derive(clap::Args, Debug, Clone)]
-pub struct CharacterizeArgs {
-    /// The controller's GCS over TCP (e.g. `host-sim serve --tcp 127.0.0.1:50000`).
-    #[arg(long, value_name = "ADDR:PORT", required_unless_present = "serial", conflicts_with = "serial")]
+/// What `host-sim characterize` measures, on which controller, into which file.
+#[derive(Debug, Clone)]
+pub struct CharacterizeOptions {
+    /// The controller's GCS over TCP (e.g. `host-sim serve --tcp 127.0.0.1:50000`); one of this
+    /// and `serial`.
     pub tcp: Option<String>,
     /// The controller's GCS over a serial port (a board's ST-LINK port, or `host-sim serve --pty`).
-    #[arg(long, value_name = "DEV")]
     pub serial: Option<PathBuf>,
-    /// Baud rate of `--serial`.
-    #[arg(long, default_value_t = 115_200)]
+    /// Baud rate of `serial`.
     pub baud: u32,
-    /// Drive amplitudes (V peak-to-peak), comma-separated.
-    #[arg(long, value_delimiter = ',', default_values_t = [60.0, 100.0], value_name = "V,V,...")]
+    /// Drive amplitudes (V peak-to-peak).
     pub voltages_v: Vec<f64>,
-    /// Drive frequencies (Hz), comma-separated.
-    #[arg(long, value_delimiter = ',', default_values_t = [900.0, 1500.0, 2100.0], value_name = "HZ,HZ,...")]
+    /// Drive frequencies (Hz).
     pub frequencies_hz: Vec<f64>,
-    /// Drive senses, comma-separated (1, -1 or both).
-    #[arg(long, value_delimiter = ',', allow_negative_numbers = true, default_values_t = [1, -1], value_name = "D,D")]
+    /// Drive senses (1, -1 or both).
     pub directions: Vec<i8>,
     /// Weight hanging on the slider (N), pulling toward −x: it opposes the +x runs, whose rows
     /// carry it in the load column. Only the user knows it; the controller cannot measure it.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub load_n: f64,
     /// Durations of the short and the long burst (s).
-    #[arg(long, value_delimiter = ',', default_values_t = [0.05, 0.2], value_name = "S,S")]
     pub burst_s: Vec<f64>,
     /// Largest change of the preload reading during the run (N); more stops the run.
-    #[arg(long, default_value_t = 1.0)]
     pub preload_tolerance_n: f64,
-    /// Add the rows to an existing file instead of writing a new one (e.g. after changing the
-    /// preload by hand).
-    #[arg(long)]
+    /// Add the rows to an existing file instead of writing a new one.
     pub append: bool,
     /// Output CSV file.
-    #[arg(long, value_name = "FILE.csv")]
     pub out: PathBuf,
 }
 
-impl CharacterizeArgs {
+impl CharacterizeOptions {
     fn validate(&self) -> Result<()> {
         use crate::check;
         // The board decides the drive's real limits; these only catch typos, in the shared wording.
@@ -192,7 +182,7 @@ impl Stage {
     }
 }
 
-pub fn run(args: &CharacterizeArgs) -> Result<()> {
+pub fn run(args: &CharacterizeOptions) -> Result<()> {
     args.validate()?;
     // Check the output before any motion.
     if args.append && args.out.exists() {

@@ -15,33 +15,26 @@ use std::net::{TcpListener, TcpStream};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-#[derive(clap::Args, Debug, Clone)]
+/// What `host-sim serve` runs (the CLI's flags of the same names build it).
+#[derive(Debug, Clone)]
 pub struct ServeArgs {
     /// Listen for one GCS client at a time on this TCP address (e.g. 127.0.0.1:50000).
-    #[arg(long, value_name = "ADDR:PORT")]
     pub tcp: Option<String>,
     /// Open a pseudo-terminal and print its path (a serial port for clients such as PIPython's
     /// `ConnectRS232`).
-    #[arg(long)]
     pub pty: bool,
     /// Log every exchange (bytes in, bytes out) to stderr.
-    #[arg(long)]
     pub verbose: bool,
     /// Preload force F0 of the simulated motor (N).
-    #[arg(long, default_value_t = 16.0, allow_negative_numbers = true)]
     pub preload_n: f64,
     /// Encoder index mark at this slider position of the plant (µm; the slider starts at 0).
-    #[arg(long, default_value_t = -20.0, allow_negative_numbers = true)]
     pub index_um: f64,
     /// Limit switches this far beyond the index on either side (mm).
-    #[arg(long, default_value_t = 55.0, allow_negative_numbers = true)]
     pub limit_mm: f64,
     /// File for `WPA`: the board's flash parameter record, byte for byte, loaded at start-up;
     /// in memory when absent.
-    #[arg(long, value_name = "FILE")]
     pub store: Option<PathBuf>,
     /// Stop after this many seconds (for tests); runs until killed when absent.
-    #[arg(long, value_name = "S")]
     pub duration_s: Option<f64>,
 }
 

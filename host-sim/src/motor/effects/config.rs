@@ -3,8 +3,10 @@
 //! module, `effects`), so the parameter file can hold it without importing the models.
 
 use anyhow::{anyhow, bail, Result};
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 use std::collections::BTreeMap;
+use std::fmt;
+use std::str::FromStr;
 
 /// The optional `[effects]` section of a parameter file.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
@@ -108,16 +110,206 @@ fn default_hertz_ref() -> f64 {
     DEFAULT_HERTZ_REF_N
 }
 
-/// Names of the library's effects, in a fixed order.
-pub const EFFECT_NAMES: [&str; 7] = [
-    "rail_friction",
-    "assembly_asymmetry",
-    "preload_dependent_friction",
-    "stribeck_friction",
-    "amplifier_rolloff",
-    "stator_resonance",
-    "hertz_contact",
-];
+/// One effect of the library. Everything the library says of an effect apart from its physics
+/// (its name, parameters, signature and fitted parameters) is in [`Effect::info`], the one table
+/// of them; the name is what parameter files (`[effects.<name>]`), `--effect`, the reports and
+/// the JSON say.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Effect {
+    RailFriction,
+    AssemblyAsymmetry,
+    PreloadDependentFriction,
+    StribeckFriction,
+    AmplifierRolloff,
+    StatorResonance,
+    HertzContact,
+}
+
+/// What the library knows of one effect, apart from its physics.
+#[derive(Debug)]
+pub struct EffectInfo {
+    /// Its name (see [`Effect`]).
+    pub name: &'static str,
+    /// Its parameters in a parameter file's `[effects.<name>]`, the strength first.
+    pub params: &'static [&'static str],
+    /// Its signature: the conditions its law acts on (the variables of the law, mapped to the
+    /// measured conditions). The model-gap workflow names an effect only when, after its fit,
+    /// the residuals along these conditions are consistent with noise.
+    pub signature: &'static [Axis],
+    /// The parameters the model-gap fit varies, strength first. Shape parameters not listed here
+    /// (Stribeck speed, resonance frequency and damping, Hertz reference preload) keep the base
+    /// file's values or their defaults.
+    pub fit: &'static [FitParam],
+}
+
+/// One parameter of an effect as the model-gap fit sees it.
+#[derive(Debug, Clone, Copy)]
+pub struct FitParam {
+    pub name: &'static str,
+    pub lo: f64,
+    pub hi: f64,
+    /// The value at which the effect vanishes (score test point).
+    pub zero: f64,
+    pub starts: &'static [f64],
+}
+
+impl Effect {
+    /// Every effect of the library, in its fixed order.
+    pub const ALL: [Effect; 7] = [
+        Effect::RailFriction,
+        Effect::AssemblyAsymmetry,
+        Effect::PreloadDependentFriction,
+        Effect::StribeckFriction,
+        Effect::AmplifierRolloff,
+        Effect::StatorResonance,
+        Effect::HertzContact,
+    ];
+
+    /// What the library knows of this effect: its row of the one table below.
+    pub const fn info(self) -> &'static EffectInfo {
+        match self {
+            Effect::RailFriction => &RAIL_FRICTION,
+            Effect::AssemblyAsymmetry => &ASSEMBLY_ASYMMETRY,
+            Effect::PreloadDependentFriction => &PRELOAD_DEPENDENT_FRICTION,
+            Effect::StribeckFriction => &STRIBECK_FRICTION,
+            Effect::AmplifierRolloff => &AMPLIFIER_ROLLOFF,
+            Effect::StatorResonance => &STATOR_RESONANCE,
+            Effect::HertzContact => &HERTZ_CONTACT,
+        }
+    }
+
+    /// Its name in parameter files, `--effect`, reports and JSON.
+    pub const fn name(self) -> &'static str {
+        self.info().name
+    }
+
+    /// Its parameters in a parameter file, the strength first.
+    pub fn params(self) -> &'static [&'static str] {
+        self.info().params
+    }
+
+    /// Its signature (see [`EffectInfo::signature`]).
+    pub fn signature(self) -> &'static [Axis] {
+        self.info().signature
+    }
+
+    /// The parameters the model-gap fit varies (see [`EffectInfo::fit`]).
+    pub fn fit_params(self) -> &'static [FitParam] {
+        self.info().fit
+    }
+
+    /// The effect a parameter-file parameter belongs to.
+    pub fn of_param(param: &str) -> Option<Effect> {
+        Effect::ALL.into_iter().find(|e| e.params().contains(&param))
+    }
+}
+
+// The table of the effects: name, file parameters, signature (the comment says why), fitted
+// parameters.
+
+const RAIL_FRICTION: EffectInfo = EffectInfo {
+    name: "rail_friction",
+    params: &["rail_coulomb_n", "rail_viscous_n_s_per_m"],
+    // −c·sign(v) − b·v: the slider's speed (set by the load) and its sign (the drive sense).
+    signature: &[Axis::Load, Axis::Direction],
+    fit: &[FitParam { name: "rail_coulomb_n", lo: 0.0, hi: 10.0, zero: 0.0, starts: &[0.1, 0.6] }],
+};
+
+const ASSEMBLY_ASYMMETRY: EffectInfo = EffectInfo {
+    name: "assembly_asymmetry",
+    params: &["asymmetry_fraction"],
+    // Xc·(1 + a·d): the drive sense only.
+    signature: &[Axis::Direction],
+    fit: &[FitParam { name: "asymmetry_fraction", lo: -0.5, hi: 0.5, zero: 0.0, starts: &[-0.05, 0.05] }],
+};
+
+const PRELOAD_DEPENDENT_FRICTION: EffectInfo = EffectInfo {
+    name: "preload_dependent_friction",
+    params: &["mu_drop_per_n", "knee_preload_n"],
+    // μ/(1 + s·max(0, F0 − Fk)): the static preload only.
+    signature: &[Axis::Preload],
+    fit: &[
+        FitParam { name: "mu_drop_per_n", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.02] },
+        // The workflow starts the knee between the measured preloads instead.
+        FitParam { name: "knee_preload_n", lo: 0.0, hi: 60.0, zero: 12.0, starts: &[12.0] },
+    ],
+};
+
+const STRIBECK_FRICTION: EffectInfo = EffectInfo {
+    name: "stribeck_friction",
+    params: &["stribeck_rise", "stribeck_speed_m_s"],
+    // μ(slip), slip = ω·X·cos φ − v: the foot's speed (voltage × frequency) and the slider's (the
+    // load).
+    signature: &[Axis::Voltage, Axis::Frequency, Axis::Load],
+    fit: &[FitParam { name: "stribeck_rise", lo: 0.0, hi: 5.0, zero: 0.0, starts: &[0.2, 1.0] }],
+};
+
+const AMPLIFIER_ROLLOFF: EffectInfo = EffectInfo {
+    name: "amplifier_rolloff",
+    params: &["rolloff_corner_hz"],
+    // Gain 1/√(1 + (f/fc)²) on the drive: the frequency only.
+    signature: &[Axis::Frequency],
+    // Fitted as q = (1 kHz / fc)² (q = 0: no roll-off); `rolloff_corner_hz` follows from it.
+    fit: &[FitParam { name: "rolloff_q", lo: 0.0, hi: 4.0, zero: 0.0, starts: &[0.05, 0.4] }],
+};
+
+const STATOR_RESONANCE: EffectInfo = EffectInfo {
+    name: "stator_resonance",
+    params: &["resonance_strength", "resonance_hz", "resonance_damping_ratio"],
+    // Gain |1 + k·(H(jω) − 1)| on the drive: the frequency only.
+    signature: &[Axis::Frequency],
+    fit: &[FitParam { name: "resonance_strength", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.05, 0.3] }],
+};
+
+const HERTZ_CONTACT: EffectInfo = EffectInfo {
+    name: "hertz_contact",
+    params: &["hertz_exponent", "hertz_ref_preload_n"],
+    // kc·(F0/Fref)ⁿ: the static preload only.
+    signature: &[Axis::Preload],
+    fit: &[FitParam { name: "hertz_exponent", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.1, 0.4] }],
+};
+
+/// An unknown name is an error that names it and the known ones, on one line. Every effect name
+/// a user gives goes through here.
+impl FromStr for Effect {
+    type Err = anyhow::Error;
+    fn from_str(name: &str) -> Result<Self> {
+        Effect::ALL
+            .into_iter()
+            .find(|e| e.name() == name)
+            .ok_or_else(|| anyhow!("unknown effect '{name}' (known: {})", EFFECT_NAMES.join(", ")))
+    }
+}
+
+impl fmt::Display for Effect {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl Serialize for Effect {
+    fn serialize<S: Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> Deserialize<'de> for Effect {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let name = String::deserialize(d)?;
+        name.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// Names of the library's effects, in [`Effect::ALL`]'s order.
+pub const EFFECT_NAMES: [&str; 7] = {
+    let mut names = [""; 7];
+    let mut i = 0;
+    while i < names.len() {
+        names[i] = Effect::ALL[i].name();
+        i += 1;
+    }
+    names
+};
 
 /// A condition of a measured operating point; the residual structure along each is what the
 /// model-gap workflow tests against the noise.
@@ -147,97 +339,54 @@ impl Axis {
     }
 }
 
-/// An effect's signature: the conditions its law acts on (the variables of the law, mapped to
-/// the measured conditions). The model-gap workflow names an effect only when, after its fit, the
-/// residuals along these conditions are consistent with noise. Every library effect has one (a
-/// test holds this); an unknown name has none.
+/// The signature of the effect named `effect` (see [`EffectInfo::signature`]); an unknown name
+/// has none.
 pub fn signature(effect: &str) -> &'static [Axis] {
-    use Axis::*;
-    match effect {
-        // −c·sign(v) − b·v: the slider's speed (set by the load) and its sign (the drive sense).
-        "rail_friction" => &[Load, Direction],
-        // Xc·(1 + a·d): the drive sense only.
-        "assembly_asymmetry" => &[Direction],
-        // μ/(1 + s·max(0, F0 − Fk)): the static preload only.
-        "preload_dependent_friction" => &[Preload],
-        // μ(slip), slip = ω·X·cos φ − v: the foot's speed (voltage × frequency) and the slider's
-        // (the load).
-        "stribeck_friction" => &[Voltage, Frequency, Load],
-        // Gain 1/√(1 + (f/fc)²) on the drive: the frequency only.
-        "amplifier_rolloff" => &[Frequency],
-        // Gain |1 + k·(H(jω) − 1)| on the drive: the frequency only.
-        "stator_resonance" => &[Frequency],
-        // kc·(F0/Fref)ⁿ: the static preload only.
-        "hertz_contact" => &[Preload],
-        _ => &[],
-    }
+    effect.parse::<Effect>().map_or(&[], Effect::signature)
 }
 
 /// The library's own (`'static`) name for `name`; an unknown name is an error that names it and
-/// the known ones, on one line. Every effect name a user gives goes through here.
+/// the known ones, on one line (as [`Effect::from_str`]).
 pub fn effect_name(name: &str) -> Result<&'static str> {
-    EFFECT_NAMES
-        .iter()
-        .copied()
-        .find(|n| *n == name)
-        .ok_or_else(|| anyhow!("unknown effect '{name}' (known: {})", EFFECT_NAMES.join(", ")))
+    name.parse::<Effect>().map(Effect::name)
 }
-
-/// Every parameter name any effect knows, with the effect it belongs to.
-pub const PARAM_NAMES: [(&str, &str); 13] = [
-    ("rail_friction", "rail_coulomb_n"),
-    ("rail_friction", "rail_viscous_n_s_per_m"),
-    ("assembly_asymmetry", "asymmetry_fraction"),
-    ("preload_dependent_friction", "mu_drop_per_n"),
-    ("preload_dependent_friction", "knee_preload_n"),
-    ("stribeck_friction", "stribeck_rise"),
-    ("stribeck_friction", "stribeck_speed_m_s"),
-    ("amplifier_rolloff", "rolloff_corner_hz"),
-    ("stator_resonance", "resonance_strength"),
-    ("stator_resonance", "resonance_hz"),
-    ("stator_resonance", "resonance_damping_ratio"),
-    ("hertz_contact", "hertz_exponent"),
-    ("hertz_contact", "hertz_ref_preload_n"),
-];
 
 impl Effects {
     pub fn is_none(&self) -> bool {
         *self == Effects::default()
     }
 
-    /// Names of the effects present with a non-zero strength.
-    pub fn active(&self) -> Vec<&'static str> {
-        EFFECT_NAMES.iter().copied().filter(|n| self.is_active(n)).collect()
+    /// The effects present with a non-zero strength.
+    pub fn active(&self) -> Vec<Effect> {
+        Effect::ALL.into_iter().filter(|e| self.is_active(*e)).collect()
     }
 
-    pub fn is_active(&self, name: &str) -> bool {
-        match name {
-            "rail_friction" => {
+    pub fn is_active(&self, effect: Effect) -> bool {
+        match effect {
+            Effect::RailFriction => {
                 self.rail_friction.is_some_and(|e| e.rail_coulomb_n != 0.0 || e.rail_viscous_n_s_per_m != 0.0)
             }
-            "assembly_asymmetry" => self.assembly_asymmetry.is_some_and(|e| e.asymmetry_fraction != 0.0),
-            "preload_dependent_friction" => {
+            Effect::AssemblyAsymmetry => self.assembly_asymmetry.is_some_and(|e| e.asymmetry_fraction != 0.0),
+            Effect::PreloadDependentFriction => {
                 self.preload_dependent_friction.is_some_and(|e| e.mu_drop_per_n != 0.0)
             }
-            "stribeck_friction" => self.stribeck_friction.is_some_and(|e| e.stribeck_rise != 0.0),
-            "amplifier_rolloff" => self.amplifier_rolloff.is_some_and(|e| e.rolloff_corner_hz != 0.0),
-            "stator_resonance" => self.stator_resonance.is_some_and(|e| e.resonance_strength != 0.0),
-            "hertz_contact" => self.hertz_contact.is_some_and(|e| e.hertz_exponent != 0.0),
-            _ => false,
+            Effect::StribeckFriction => self.stribeck_friction.is_some_and(|e| e.stribeck_rise != 0.0),
+            Effect::AmplifierRolloff => self.amplifier_rolloff.is_some_and(|e| e.rolloff_corner_hz != 0.0),
+            Effect::StatorResonance => self.stator_resonance.is_some_and(|e| e.resonance_strength != 0.0),
+            Effect::HertzContact => self.hertz_contact.is_some_and(|e| e.hertz_exponent != 0.0),
         }
     }
 
     /// Removes one effect (back to the base model for that module).
-    pub fn clear(&mut self, name: &str) {
-        match name {
-            "rail_friction" => self.rail_friction = None,
-            "assembly_asymmetry" => self.assembly_asymmetry = None,
-            "preload_dependent_friction" => self.preload_dependent_friction = None,
-            "stribeck_friction" => self.stribeck_friction = None,
-            "amplifier_rolloff" => self.amplifier_rolloff = None,
-            "stator_resonance" => self.stator_resonance = None,
-            "hertz_contact" => self.hertz_contact = None,
-            _ => {}
+    pub fn clear(&mut self, effect: Effect) {
+        match effect {
+            Effect::RailFriction => self.rail_friction = None,
+            Effect::AssemblyAsymmetry => self.assembly_asymmetry = None,
+            Effect::PreloadDependentFriction => self.preload_dependent_friction = None,
+            Effect::StribeckFriction => self.stribeck_friction = None,
+            Effect::AmplifierRolloff => self.amplifier_rolloff = None,
+            Effect::StatorResonance => self.stator_resonance = None,
+            Effect::HertzContact => self.hertz_contact = None,
         }
     }
 
@@ -364,7 +513,7 @@ impl Effects {
             }
         }
         for (k, v) in &self.std_dev {
-            if !PARAM_NAMES.iter().any(|(_, n)| n == k) {
+            if Effect::of_param(k).is_none() {
                 bail!("effects.std_dev: unknown parameter '{k}'");
             }
             finite_nonneg(k, *v)?;
@@ -421,5 +570,55 @@ impl Effects {
             }
         }
         g
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The name is the effect's one spelling: parsed, printed and serialised alike, and an
+    /// unknown name is the one-line error that lists the known ones.
+    #[test]
+    fn an_effect_is_named_the_same_everywhere() {
+        for e in Effect::ALL {
+            assert_eq!(e.name().parse::<Effect>().unwrap(), e);
+            assert_eq!(e.to_string(), e.name());
+            let json = serde_json::to_string(&e).unwrap();
+            assert_eq!(json, format!("\"{}\"", e.name()));
+            assert_eq!(serde_json::from_str::<Effect>(&json).unwrap(), e);
+        }
+        assert_eq!(EFFECT_NAMES.to_vec(), Effect::ALL.map(Effect::name).to_vec());
+        let err = "warp_drive".parse::<Effect>().unwrap_err().to_string();
+        assert_eq!(err, format!("unknown effect 'warp_drive' (known: {})", EFFECT_NAMES.join(", ")));
+        assert!(serde_json::from_str::<Effect>("\"warp_drive\"").is_err());
+    }
+
+    /// The table agrees with the parameter file: every parameter it lists sets its own effect
+    /// (and no other), its strength (listed first) makes the effect active, and a fitted
+    /// parameter is one of the file's or the roll-off's internal `rolloff_q`; each fitted
+    /// parameter's zero and starts lie within its bounds.
+    #[test]
+    fn the_table_agrees_with_the_parameter_file() {
+        for e in Effect::ALL {
+            assert!(!e.params().is_empty() && !e.signature().is_empty() && !e.fit_params().is_empty());
+            for (i, p) in e.params().iter().enumerate() {
+                assert_eq!(Effect::of_param(p), Some(e), "{p}");
+                let mut fx = Effects::default();
+                fx.set(p, 0.5).unwrap();
+                fx.validate().unwrap();
+                if i == 0 {
+                    assert_eq!(fx.active(), vec![e], "{p}");
+                }
+                fx.clear(e);
+                assert!(fx.is_none(), "{p}");
+            }
+            for f in e.fit_params() {
+                assert!(e.params().contains(&f.name) || f.name == "rolloff_q", "{e}: {}", f.name);
+                assert!(f.lo <= f.zero && f.zero <= f.hi, "{e}: {}", f.name);
+                assert!(f.starts.iter().all(|s| (f.lo..=f.hi).contains(s)), "{e}: {}", f.name);
+            }
+        }
+        assert_eq!(Effect::of_param("rolloff_q"), None);
     }
 }
