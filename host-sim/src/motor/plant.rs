@@ -325,8 +325,14 @@ impl Plant {
     }
     /// Moves the preload spring's anchor so the static preload becomes `preload_n`.
     pub fn set_preload_n(&mut self, preload_n: f64) {
-        let now = self.preload_force_n();
-        self.anchor_m += (preload_n - now) / self.p.stator.preload_spring_n_per_m;
+        // The static force runs through the preload spring, the stacks with flexure and the
+        // contact in series: moving the anchor changes it by the chain's compliance. (Not by
+        // the spring force of this instant: while the stator vibrates that is off its static
+        // value by up to the vibration's force amplitude.)
+        let p = &self.p;
+        let chain_m_per_n =
+            1.0 / p.stator.preload_spring_n_per_m + 1.0 / p.k1_n_per_m() + 1.0 / p.contact.stiffness_n_per_m;
+        self.anchor_m += (preload_n - self.preload_setting_n) * chain_m_per_n;
         self.preload_setting_n = preload_n;
     }
     /// Pulls the stator back so the foot rests `gap_m` clear of the slider, at rest and without
