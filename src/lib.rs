@@ -4,6 +4,7 @@
 //! - [`generator`]: quadrature sine (and static) DAC words for the two stacks;
 //! - [`sensors`]: encoder unwrapping, preload force cell;
 //! - [`model`]: fixed-point steady-state thrust model and its inverse (the feedforward);
+//! - [`inertia`]: the same model for a carriage whose speed ripples within a period (f32);
 //! - [`profile`]: online trapezoidal motion profile;
 //! - [`controller`]: state machine, position control, supervision; one entry point `step`;
 //! - [`settings`]: every controller setting declared once (id, unit, range, default, storage);
@@ -18,6 +19,7 @@ pub mod defaults;
 pub mod fastmath;
 pub mod gcs;
 pub mod generator;
+pub mod inertia;
 pub mod model;
 pub mod motor_table;
 pub mod pil_wire;

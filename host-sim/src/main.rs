@@ -330,6 +330,37 @@ fn run(cli: Cli) -> Result<()> {
         Command::Gap(args) => host_sim::gap::run(args.into(), &params)?,
         Command::Measure(args) => host_sim::gap::measure::run(args.into(), &params)?,
         Command::Characterize(args) => host_sim::virtual_controller::characterize::run(&args.into())?,
+        Command::Sweep { json } => {
+            let show = check::show_progress();
+            let rows = host_sim::harness::sweep::run(&params, |done, total| {
+                if show {
+                    eprint!("\rsweep: {done}/{total} moves");
+                }
+            })?;
+            if show {
+                eprintln!();
+            }
+            if json {
+                println!("{}", serde_json::to_string_pretty(&rows)?);
+            } else {
+                println!(
+                    "{:>9}  {:<26} {:>9} {:>11} {:>13} {:>9}  fault",
+                    "slider kg", "move", "settle s", "× limit", "overshoot nm", "max FE µm"
+                );
+                for r in &rows {
+                    println!(
+                        "{:>9}  {:<26} {:>9} {:>11} {:>13.1} {:>9.3}  {}",
+                        r.slider_mass_kg,
+                        r.mv,
+                        r.settle_time_s.map_or("-".into(), |t| format!("{t:.4}")),
+                        r.limit_ratio.map_or("-".into(), |x| format!("{x:.2}")),
+                        r.overshoot_nm,
+                        r.max_following_error_um,
+                        r.fault.as_deref().unwrap_or("-")
+                    );
+                }
+            }
+        }
         Command::Demo { plot: plot_path } => {
             check::output_file("--plot", &plot_path)?;
             println!("Shaking-beam piezo motor, closed loop: the firmware's controller against the plant");

@@ -112,6 +112,15 @@ pub enum Command {
         #[arg(long, value_name = "FILE.svg", default_value = "demo.svg")]
         plot: PathBuf,
     },
+    /// The controller across carriages: the file's own and 0.1, 0.3, 1, 5 and 50 kg, each with a
+    /// 1 mm move, 100 nm / 1 µm / 10 µm steps, 1 mm against an unknown 2 N and against a known
+    /// 2 N with plain PI; one row per case (settle time, its ratio to the plant's physical limit,
+    /// overshoot, peak following error, fault).
+    Sweep {
+        /// Print one JSON array of rows instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
     /// Processor in the loop: one closed-loop move with the control core running on an emulated
     /// Cortex-M4F (QEMU) against the plant; instruction counts per tick and per state, and every
     /// period whose outputs differ from the host build's.

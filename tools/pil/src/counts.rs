@@ -165,7 +165,15 @@ pub fn hot_paths() {
     }
     pt.print("PerVolt::point", k);
     // The model table the tick reads (built by the board's thread-mode task).
-    let request = ModelRequest { per_volt: pv, preload_n: 16.0, max_drive_v: 100.0, generation: 0 };
+    // The default 1 kg carriage at 2.2 kHz: light enough that the table comes from orbits.
+    let request = ModelRequest {
+        per_volt: pv,
+        preload_n: 16.0,
+        max_drive_v: 100.0,
+        frequency_hz: 2200.0,
+        moving_mass_kg: 1.0,
+        generation: 0,
+    };
     let mut build = Stat::new();
     let mut table = ModelTable::build(&request);
     for _ in 0..5 {

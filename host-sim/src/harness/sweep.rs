@@ -1,0 +1,109 @@
+//! `host-sim sweep`: the controller across the carriages people own. One row per plant and move
+//! (settle time, its ratio to that plant's physical limit, overshoot, peak following error,
+//! fault), so a user sees at a glance where the controller does well and where it does not.
+//!
+//! The physical limit of a 1 mm move is measured on the time-domain plant, not taken from the
+//! model: the highest no-load speed the plant reaches at 100 V over 0.5–2.2 kHz (in 100 Hz
+//! steps), plus the time to reach it at the stall thrust (`M·v/F_stall`, the steady-state
+//! model's stall: the speed-up is under 1 % of a 1 mm move for every carriage here).
+
+use crate::harness::moves::{ready_board, run_move, MoveResult};
+use crate::harness::sil::controller_config;
+use crate::motor::params::Params;
+use crate::motor::plant::{steady_speed_m_s, ExternalLoad};
+use crate::motor::steady::{OperatingPoint, ThrustModel};
+use rayon::prelude::*;
+use serde::Serialize;
+
+/// Slider masses of the sweep besides the file's own carriage (kg).
+pub const MASSES_KG: [f64; 5] = [0.1, 0.3, 1.0, 5.0, 50.0];
+
+/// The moves of the sweep: (label, target µm, opposing load N, load told to the controller,
+/// feedforward on).
+const MOVES: [(&str, f64, f64, bool, bool); 6] = [
+    ("1 mm", 1000.0, 0.0, false, true),
+    ("100 nm step", 0.1, 0.0, false, true),
+    ("1 µm step", 1.0, 0.0, false, true),
+    ("10 µm step", 10.0, 0.0, false, true),
+    ("1 mm, 2 N unknown", 1000.0, 2.0, false, true),
+    ("1 mm, 2 N known, plain PI", 1000.0, 2.0, true, false),
+];
+
+#[derive(Debug, Clone, Serialize)]
+pub struct SweepRow {
+    pub slider_mass_kg: f64,
+    pub mv: String,
+    pub settle_time_s: Option<f64>,
+    /// Settle time over the plant's physical limit (1 mm moves without load only).
+    pub limit_ratio: Option<f64>,
+    pub overshoot_nm: f64,
+    pub max_following_error_um: f64,
+    pub fault: Option<String>,
+}
+
+/// The plant's physical limit for a move of `distance_m` at 16 N (s), and the frequency of its
+/// highest no-load speed (Hz).
+pub fn physical_limit_s(p: &Params, distance_m: f64) -> (f64, f64) {
+    let freqs: Vec<f64> = (5..=22).map(|k| 100.0 * f64::from(k)).collect();
+    let (best_f, best_v) = freqs
+        .par_iter()
+        .map(|&f| (f, steady_speed_m_s(p, 16.0, 100.0, f, 1, 0.0)))
+        .collect::<Vec<_>>()
+        .into_iter()
+        .fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+    let op = OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: best_f };
+    let stall = ThrustModel::new(p, op).stall_force_n().max(1e-9);
+    let speed_up_s = p.slider.mass_kg * best_v / stall;
+    (distance_m / best_v.max(1e-9) + speed_up_s, best_f)
+}
+
+fn one(p: &Params, to_um: f64, load_n: f64, known: bool, feedforward: bool) -> anyhow::Result<MoveResult> {
+    let mut cfg = controller_config(p);
+    cfg.feedforward = feedforward;
+    if known {
+        cfg.expected_load_n = load_n as f32;
+    }
+    let mut sil = ready_board(p, cfg, 16.0)?;
+    sil.set_load(ExternalLoad::opposing(load_n, 1));
+    let max_s = 3.0 + 5.0 * to_um * 1e-6 / 2.0e-3;
+    Ok(run_move(&mut sil, (to_um * 1e3).round() as i64, max_s, 0.05))
+}
+
+/// Runs every move on every plant (in parallel); `progress(done, total)` after each.
+pub fn run(p: &Params, progress: impl Fn(usize, usize) + Sync) -> anyhow::Result<Vec<SweepRow>> {
+    let mut masses = vec![p.slider.mass_kg];
+    masses.extend(MASSES_KG.iter().copied().filter(|&m| (m - p.slider.mass_kg).abs() > 1e-12));
+    let limits: Vec<f64> = masses
+        .iter()
+        .map(|&m| {
+            let mut q = p.clone();
+            q.slider.mass_kg = m;
+            physical_limit_s(&q, 1e-3).0
+        })
+        .collect();
+    let cases: Vec<(usize, usize)> =
+        (0..masses.len()).flat_map(|i| (0..MOVES.len()).map(move |j| (i, j))).collect();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let total = cases.len();
+    cases
+        .par_iter()
+        .map(|&(i, j)| {
+            let (label, to_um, load_n, known, ff) = MOVES[j];
+            let mut q = p.clone();
+            q.slider.mass_kg = masses[i];
+            let r = one(&q, to_um, load_n, known, ff)?;
+            progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, total);
+            let limit_ratio =
+                (to_um == 1000.0 && load_n == 0.0).then(|| r.settle_time_s.map(|t| t / limits[i])).flatten();
+            Ok(SweepRow {
+                slider_mass_kg: masses[i],
+                mv: label.to_string(),
+                settle_time_s: r.settle_time_s,
+                limit_ratio,
+                overshoot_nm: r.overshoot_nm,
+                max_following_error_um: r.max_following_error_um,
+                fault: r.fault.map(|f| f.text.to_string()),
+            })
+        })
+        .collect()
+}
