@@ -34,7 +34,7 @@ fn recorder_error(e: RecorderError) -> i32 {
     }
 }
 
-fn recorder<'b>(board: &'b dyn Board) -> Result<&'b Recorder, i32> {
+fn recorder(board: &dyn Board) -> Result<&Recorder, i32> {
     board.recorder().ok_or(error::UNKNOWN_COMMAND)
 }
 
