@@ -14,7 +14,8 @@
 //! until the table restarts, so a reader sees whole points. What restarts or reconfigures a table
 //! (`DRC`, `DRT`, `RTR`, a trigger by `MOV`/`MVR`/`XOS`) must not run concurrently with
 //! [`Recorder::sample`]: on the board those commands run with the tick masked, as every command
-//! that is not a query does. Breaking that rule garbles data, never memory: every index is
+//! that is not a query does. The one exception, the start of an armed table by trigger 2 (next
+//! command, which may be a query), is safe beside the tick ([`Recorder::on_command`]). Breaking that rule garbles data, never memory: every index is
 //! checked.
 //!
 //! Time: a recording starts at its trigger with point 1, the state at that moment (the command
@@ -81,6 +82,8 @@ pub mod trigger {
     pub const DEFAULT: u32 = 0;
     /// Every command that changes the target (`MOV`, `MVR`, `XOS`) starts the recording anew.
     pub const ANY_MOVE: u32 = 1;
+    /// The next command of any kind after `DRT` starts the recording (PIPython's default).
+    pub const NEXT_COMMAND: u32 = 2;
     /// `DRT` itself starts the recording.
     pub const IMMEDIATELY: u32 = 4;
     /// The next command that changes the target starts the recording; later ones leave it.
@@ -91,6 +94,7 @@ pub mod trigger {
 pub const TRIGGERS: &[(u32, &str)] = &[
     (trigger::DEFAULT, "Default setting: as 1"),
     (trigger::ANY_MOVE, "Any command changing the target position (MOV, MVR, XOS) restarts recording"),
+    (trigger::NEXT_COMMAND, "Next command, then reset"),
     (trigger::IMMEDIATELY, "Immediately"),
     (trigger::NEXT_MOVE, "Next command changing the target position (MOV, MVR, XOS), then reset"),
 ];
@@ -348,6 +352,21 @@ impl Recorder {
                 _ => false,
             };
             if fire {
+                t.start(rate, ctl);
+            }
+        }
+    }
+
+    /// A command other than `DRT` ran: the tables waiting for the next command start, with
+    /// `ctl` as it is now. Only an armed table starts, which the tick does not touch until its
+    /// phase says recording (stored last): safe beside the tick, so a query (which the board runs
+    /// without holding the tick off) may be that command.
+    pub fn on_command(&self, ctl: &Controller) {
+        let rate = self.rate();
+        for t in &self.tables {
+            if t.trigger.load(Ordering::Relaxed) == trigger::NEXT_COMMAND
+                && t.phase.load(Ordering::Relaxed) == phase::ARMED
+            {
                 t.start(rate, ctl);
             }
         }

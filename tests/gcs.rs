@@ -930,8 +930,8 @@ fn recorder_configuration_and_its_errors() {
         (b"RTR 10\n", b""),
         (b"RTR?\n", b"10\n"),
         (b"ERR?\n", b"0\n"),
-        // Triggers: PI's 0, 1, 4, 6; 2 (next command of any kind) is not offered.
-        (b"DRT 0 2 0\n", b""),
+        // Triggers: PI's 0, 1, 2, 4, 6; not 3 (external).
+        (b"DRT 0 3 0\n", b""),
         (b"ERR?\n", b"17\n"),
         (b"DRT 9 1 0\n", b""),
         (b"ERR?\n", b"57\n"),
@@ -980,6 +980,7 @@ fn recorder_options_for_pipython() {
 #TriggerOptions \n\
 0=Default setting: as 1 \n\
 1=Any command changing the target position (MOV, MVR, XOS) restarts recording \n\
+2=Next command, then reset \n\
 4=Immediately \n\
 6=Next command changing the target position (MOV, MVR, XOS), then reset \n\
 #Additional information \n\
@@ -1141,5 +1142,28 @@ fn moves_trigger_the_recorder() {
         (b"XOS 1 10 50 1500\n", b""),
         (b"ERR?\n", b"0\n"),
         (b"DRL? 1 2 3\n", b"1=1 \n2=1 \n3=1\n"),
+    ]);
+}
+
+#[test]
+fn trigger_2_starts_on_the_next_command_whatever_it_is() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"DRC 1 1 2 2 1 2\n", b""),
+        (b"DRT 1 2 0 2 6 0\n", b""),
+        // The command after DRT starts table 1 once it has run (its own reply comes first).
+        (b"DRL? 1 2\n", b"1=0 \n2=0\n"),
+        (b"DRL? 1 2\n", b"1=1 \n2=0\n"),
+        (b"ERR?\n", b"0\n"),
+    ]);
+    rig.steps(3, Inputs::default());
+    // Reset after it: later commands leave it recording.
+    rig.transcript(&[(b"DRL? 1\n", b"1=4\n"), (b"DRL? 1\n", b"1=4\n")]);
+    // A DRT for another table does not start table 1 armed again; the command after it does.
+    rig.transcript(&[
+        (b"DRT 1 2 0\n", b""),
+        (b"DRT 2 6 0\n", b""),
+        (b"DRL? 1\n", b"1=0\n"),
+        (b"DRL? 1\n", b"1=1\n"),
     ]);
 }

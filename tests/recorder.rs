@@ -60,7 +60,7 @@ fn power_up_state_and_refusals() {
     for bad in [4, 255, 260, u32::MAX] {
         assert_eq!(rec.configure(1, bad), Err(RecorderError::UnknownOption));
     }
-    for bad in [2, 3, 5, 7, u32::MAX] {
+    for bad in [3, 5, 7, u32::MAX] {
         assert_eq!(rec.set_trigger(1, bad, &ctl), Err(RecorderError::OutOfRange));
     }
     assert_eq!(rec.set_rate(0), Err(RecorderError::OutOfRange));
@@ -151,6 +151,15 @@ fn triggers_by_moves() {
     assert_eq!(rec.points(4), Ok(0));
     rec.on_move(&ctl);
     assert_eq!(rec.points(4), Ok(1));
+    // Trigger 2: the next command of any kind, once.
+    rec.set_trigger(4, trigger::NEXT_COMMAND, &ctl).unwrap();
+    rec.on_move(&ctl);
+    assert_eq!(rec.points(4), Ok(0));
+    rec.on_command(&ctl);
+    assert_eq!(rec.points(4), Ok(1));
+    step(&mut ctl, &rec, 4);
+    rec.on_command(&ctl);
+    assert_eq!(rec.points(4), Ok(2));
     // DRC forgets a table's points and waits for its trigger.
     rec.configure(1, option::POSITION_ERROR).unwrap();
     assert_eq!(rec.points(1), Ok(0));
@@ -214,6 +223,7 @@ enum Op {
     Trigger(usize, u32),
     Rate(u32),
     Move,
+    Command,
     Ticks(u16),
 }
 
@@ -224,6 +234,7 @@ fn op() -> impl Strategy<Value = Op> {
         (0usize..10, 0u32..8).prop_map(|(t, g)| Op::Trigger(t, g)),
         (0u32..70_000).prop_map(Op::Rate),
         Just(Op::Move),
+        Just(Op::Command),
         (0u16..800).prop_map(Op::Ticks),
     ]
 }
@@ -244,6 +255,7 @@ proptest! {
                 Op::Trigger(t, g) => { let _ = rec.set_trigger(t, g, &ctl); }
                 Op::Rate(r) => { let _ = rec.set_rate(r); }
                 Op::Move => rec.on_move(&ctl),
+                Op::Command => rec.on_command(&ctl),
                 Op::Ticks(n) => for _ in 0..n {
                     encoder = encoder.wrapping_add(1);
                     step(&mut ctl, &rec, encoder);

@@ -547,6 +547,14 @@ impl Gcs {
         };
         out.finish();
         let result = if out.ok { result } else { Err(error::COMMAND_TOO_LONG) };
+        // The recorder's trigger 2: any command but the `DRT` that sets it.
+        if let Some(rec) = board.recorder() {
+            let drt = matches!(pending, Pending::Line(l)
+                if l.split(|&b| is_space(b)).find(|t| !t.is_empty()).is_some_and(|c| c.eq_ignore_ascii_case(b"DRT")));
+            if !drt {
+                rec.on_command(ctl);
+            }
+        }
         if let Err(code) = result {
             reply.truncate(start);
             self.error = code;

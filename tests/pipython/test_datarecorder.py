@@ -6,7 +6,9 @@ asks for; `HDR?`'s additional information says the same), the record and trigger
 `HDR?`; the number of tables comes from `TNR?`. The test records
 all eight tables (commanded, actual position, position error, drive amplitude, drive frequency,
 preload, controller state, actual position again) around `MOV 1 1.0`, reads every table back
-with `DRR?` (PI's GCS array format, parsed by PIPython's `qDRR`) and checks:
+with `DRR?` (PI's GCS array format, parsed by PIPython's `qDRR`) and checks the points below;
+then it records the move back with `Datarecorder`'s defaults (table 1, actual position,
+trigger 2: the next command). Checks of the first recording:
 
 - the header: DIM, NDATA, SAMPLE_TIME = RTR x servo update time, the column names;
 - the recorded actual position at the end equals `POS?` (to one encoder count);
@@ -91,6 +93,17 @@ def main():
             pos = pidevice.qPOS("1")["1"]
             drl = pidevice.qDRL()
             assert all(n == depth for n in drl.values()), drl
+
+            # PIPython's defaults throughout: table 1 records the actual position, trigger 2 (the
+            # next command, here the move back), sent without ERR? after it as PIPython does.
+            back = datarectools.Datarecorder(pidevice)
+            back.arm()
+            pidevice.MOV("1", 0.0)
+            _, (back_actual,) = back.getdata(timeout=30)
+            assert pidevice.qDRT(1)[1] == [2, "0"] and pidevice.qERR() == 0
+            assert len(back_actual) == depth and abs(back_actual[0] - TARGET_MM) <= COUNT_MM + 1e-9
+            assert abs(back_actual[-1] - pidevice.qPOS("1")["1"]) <= COUNT_MM + 1e-9, back_actual[-1]
+            print(f"default trigger (2): {depth} points from {back_actual[0]} to {back_actual[-1]} mm")
     finally:
         proc.terminate()
         try:
