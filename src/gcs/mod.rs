@@ -252,6 +252,7 @@ impl Out<'_> {
         }
         self.lines = self.lines.saturating_add(1);
     }
+    #[inline(never)]
     fn s(&mut self, text: &str) {
         num::Sink::put(self, text.as_bytes());
     }
