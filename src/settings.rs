@@ -435,7 +435,7 @@ settings! {
         servo_update_time_s: f32 = derived(|c| 1.0 / c.loop_hz.max(1) as f32, "one period of the control loop");
         "s", 1.0, POSITIVE, ReadOnly, "Servo update time"),
     // PI's DATA_REC_SET_POINTS: PIPython's data recorder tools ask for it before `HDR?`.
-    (0x16000201, "Data recorder",
+    (0x16000201, "Recorder",
         recorder_points: u32 = derived(|_| crate::recorder::DEPTH as u32, "the recorder's table depth");
         "", 1.0, Range::Int { lo: 1, hi: u32::MAX as i64 }, ReadOnly, "Data recorder points per table"),
 }
