@@ -263,7 +263,8 @@ pub(super) fn hdr_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
 
 /// `DRR? [<StartPoint> [<NumberOfPoints> [{<RecTableID>}]]]`: points from `StartPoint`
 /// (1-based) on, at most `NumberOfPoints` (all when absent) and no more than every named table
-/// holds; the tables with a record option when none is named. Refused: a start or count of 0
+/// holds; the tables with a record option when none is named. `SAMPLE_TIME` is the first
+/// column's (tables triggered under different `RTR`s differ). Refused: a start or count of 0
 /// (17), a table without a record option (78), a start past the recorded points (77).
 pub(super) fn drr_query(gcs: &mut Gcs, c: Call) -> GcsResult {
     let Call { args, ctl, board, out } = c;

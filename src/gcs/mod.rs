@@ -64,16 +64,18 @@ pub mod error {
     pub const WRONG_PARAM_COUNT: i32 = 24;
     pub const MISSING_PARAM: i32 = 26;
     pub const NOT_ALLOWED: i32 = 34;
-    pub const INVALID_RECORD_TABLE: i32 = 57;
-    pub const INVALID_RECORD_OPTION: i32 = 58;
-    pub const INVALID_RECORD_SOURCE: i32 = 59;
-    pub const NOT_ENOUGH_RECORDED_DATA: i32 = 77;
-    pub const TABLE_NOT_CONFIGURED: i32 = 78;
     pub const REFERENCING_FAILED: i32 = 45;
     pub const REF_WITH_REF_DISABLED: i32 = 50;
     pub const UNKNOWN_PARAMETER: i32 = 54;
     pub const INVALID_PASSWORD: i32 = 56;
+    /// Data recorder: no such record table, record option, record source (axis).
+    pub const INVALID_RECORD_TABLE: i32 = 57;
+    pub const INVALID_RECORD_OPTION: i32 = 58;
+    pub const INVALID_RECORD_SOURCE: i32 = 59;
     pub const READ_ONLY_PARAMETER: i32 = 64;
+    /// Data recorder: fewer points recorded than asked for; a table that records nothing.
+    pub const NOT_ENOUGH_RECORDED_DATA: i32 = 77;
+    pub const TABLE_NOT_CONFIGURED: i32 = 78;
     pub const OPEN_LOOP_WITH_SERVO_ON: i32 = 303;
     pub const SENSOR_SIGNAL_INVALID: i32 = 505;
     pub const CONTROLLER_BUSY: i32 = 1005;
