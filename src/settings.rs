@@ -251,8 +251,37 @@ impl Field for ReferenceSignal {
 
 /// One row: `id, group, field: type = default; unit, scale, range, keep, description`; the
 /// default is a value of the field's type or `hardware("where it comes from")`. `@check c;` and
-/// a row: whether `c`'s field is in the row's range.
+/// a row: whether `c`'s field is in the row's range. A read-only row that is no field of its
+/// own but follows from others: `id, group, name: type = derived(|c| value, "from what");
+/// unit, scale, range, ReadOnly, description`.
 macro_rules! setting {
+    (@check $c:ident; $id:literal, $group:literal, $name:ident : $t:ty = derived($get:expr, $what:literal);
+     $($rest:tt)*) => {
+        true
+    };
+    ($id:literal, $group:literal, $name:ident : $t:ty = derived($get:expr, $what:literal);
+     $unit:literal, $scale:literal, $range:expr, ReadOnly, $desc:literal) => {
+        Setting {
+            id: $id,
+            name: stringify!($name),
+            group: $group,
+            description: $desc,
+            unit: $unit,
+            scale: $scale,
+            ty: <$t as Field>::TY,
+            kind: Kind::of(<$t as Field>::TY),
+            range: $range,
+            default: DefaultValue::Hardware($what),
+            keep: Keep::ReadOnly,
+            stored: false,
+            read_only: true,
+            get: |c: &ControllerConfig| {
+                let get: fn(&ControllerConfig) -> $t = $get;
+                Field::to_value(get(c))
+            },
+            set: |_: &mut ControllerConfig, _: Value| false,
+        }
+    };
     (@check $c:ident; $id:literal, $group:literal, $($f:ident).+ : $t:ty = hardware($what:literal);
      $unit:literal, $scale:literal, $range:expr, $($rest:tt)*) => {
         Field::within($c.$($f).+, &$range)
@@ -401,6 +430,14 @@ settings! {
         "nm per count", 1.0, Range::Int { lo: 1, hi: 1_000_000 }, ReadOnly, "Encoder resolution"),
     (0x1021, "Hardware", loop_hz: u32 = hardware("the DAC rate over 20 samples per period");
         "Hz", 1.0, Range::Int { lo: 1, hi: u32::MAX as i64 }, ReadOnly, "Control loop rate"),
+    // PI's SERVO_UPDATE_TIME: PIPython's data recorder tools read it (`RTR` counts these).
+    (0x0E000200, "Hardware",
+        servo_update_time_s: f32 = derived(|c| 1.0 / c.loop_hz.max(1) as f32, "one period of the control loop");
+        "s", 1.0, POSITIVE, ReadOnly, "Servo update time"),
+    // PI's DATA_REC_SET_POINTS: PIPython's data recorder tools ask for it before `HDR?`.
+    (0x16000201, "Recorder",
+        recorder_points: u32 = derived(|_| crate::recorder::DEPTH as u32, "the recorder's table depth");
+        "", 1.0, Range::Int { lo: 1, hi: u32::MAX as i64 }, ReadOnly, "Data recorder points per table"),
 }
 
 /// The setting with this GCS id.

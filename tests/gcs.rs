@@ -5,6 +5,7 @@
 use piezo_drive::controller::{Controller, Inputs, State};
 use piezo_drive::defaults;
 use piezo_drive::gcs::{params::PARAMS, Board, Gcs, LoopStats, Pending, Reply, LINE_CAPACITY};
+use piezo_drive::recorder::Recorder;
 
 /// 16 N on the default 12-bit, 50 N force cell: word 1310 reads 1310·50/4095 = 15.995 N.
 const PRELOAD_WORD: u16 = 1310;
@@ -13,6 +14,7 @@ const PRELOAD_WORD: u16 = 1310;
 struct TestBoard {
     stored: Option<piezo_drive::controller::ControllerConfig>,
     fail_store: bool,
+    recorder: Recorder,
 }
 
 impl Board for TestBoard {
@@ -28,6 +30,9 @@ impl Board for TestBoard {
     }
     fn loop_stats(&self) -> LoopStats {
         LoopStats { step_cycles_last: 12, step_cycles_max: 34, overruns: 0, core_clock_hz: 170_000_000 }
+    }
+    fn recorder(&self) -> Option<&Recorder> {
+        Some(&self.recorder)
     }
 }
 
@@ -53,6 +58,8 @@ impl Rig {
     fn steps(&mut self, n: usize, extra: Inputs) {
         for _ in 0..n {
             self.ctl.step(&Inputs { encoder_raw: self.encoder, preload_word: PRELOAD_WORD, ..extra });
+            // The tick's last job on the board: the recorder's point.
+            self.board.recorder.sample(&self.ctl);
             // The board's lower-rate task (the model table), between ticks.
             self.ctl.background();
         }
@@ -60,15 +67,26 @@ impl Rig {
 
     /// Sends bytes; returns everything replied.
     fn send(&mut self, bytes: &[u8]) -> Vec<u8> {
-        let mut all = Vec::new();
+        self.send_parts(bytes).concat()
+    }
+
+    /// Sends bytes; returns every reply buffer the board would send, a long reply in parts.
+    fn send_parts(&mut self, bytes: &[u8]) -> Vec<Vec<u8>> {
+        let mut parts = Vec::new();
         for &b in bytes {
             if let Some(p) = self.gcs.push_byte(b) {
                 let mut reply = Reply::new();
                 self.gcs.execute(&p, &mut self.ctl, &mut self.board, &mut reply);
-                all.extend_from_slice(&reply);
+                parts.push(reply.to_vec());
+                while self.gcs.reply_pending() {
+                    let mut more = Reply::new();
+                    self.gcs.continue_reply(&self.board, &mut more);
+                    parts.push(more.to_vec());
+                }
             }
         }
-        all
+        parts.retain(|p| !p.is_empty());
+        parts
     }
 
     /// Runs a transcript: each `(sent, expected reply)` in turn.
@@ -206,9 +224,16 @@ CST? [{<AxisID>}] Get Assignment Of Stages To Axes \n\
 CSV? Get Current Syntax Version \n\
 DEC {<AxisID> <Deceleration>} Set Closed-Loop Deceleration \n\
 DEC? [{<AxisID>}] Get Closed-Loop Deceleration \n\
+DRC {<RecTableID> <Source> <RecOption>} Set Data Recorder Configuration \n\
+DRC? [{<RecTableID>}] Get Data Recorder Configuration \n\
+DRL? [{<RecTableID>}] Get Number Of Recorded Points \n\
+DRR? [<StartPoint> [<NumberOfPoints> [{<RecTableID>}]]] Get Recorded Data Values \n\
+DRT {<RecTableID> <TriggerSource> <Value>} Set Data Recorder Trigger Source \n\
+DRT? [{<RecTableID>}] Get Data Recorder Trigger Source \n\
 ERR? Get Error Number \n\
 FRF [{<AxisID>}] Fast Reference Move To Reference Mark \n\
 FRF? [{<AxisID>}] Get Referencing Result \n\
+HDR? Get All Data Recorder Options \n\
 HLP? Get List Of Available Commands \n\
 HLT [{<AxisID>}] Halt Motion Smoothly \n\
 HPA? Get List Of Available Parameters \n\
@@ -220,6 +245,8 @@ POS {<AxisID> <Position>} Set Real Position (Reference Mode Off) \n\
 POS? [{<AxisID>}] Get Real Position \n\
 RON {<AxisID> <ReferenceOn>} Set Reference Mode \n\
 RON? [{<AxisID>}] Get Reference Mode \n\
+RTR <RecordTableRate> Set Record Table Rate \n\
+RTR? Get Record Table Rate \n\
 SAI? [ALL] Get List Of Current Axis Identifiers \n\
 SPA {<ItemID> <PamID> <PamValue>} Set Volatile Memory Parameters \n\
 SPA? [{<ItemID> <PamID>}] Get Volatile Memory Parameters \n\
@@ -228,6 +255,7 @@ SVO {<AxisID> <ServoState>} Set Servo Mode \n\
 SVO? [{<AxisID>}] Get Servo Mode \n\
 TMN? [{<AxisID>}] Get Minimum Commandable Position \n\
 TMX? [{<AxisID>}] Get Maximum Commandable Position \n\
+TNR? Get Number Of Record Tables \n\
 VEL {<AxisID> <Velocity>} Set Closed-Loop Velocity \n\
 VEL? [{<AxisID>}] Get Closed-Loop Velocity \n\
 WPA [<Password>] Save Parameters To Non-Volatile Memory (Servo Off And Idle Only) \n\
@@ -841,4 +869,301 @@ fn every_accepted_setting_can_be_stored() {
     assert_eq!(&stored, rig.ctl.config());
     let record = piezo_drive::storage::encode(&stored);
     assert_eq!(piezo_drive::storage::decode(&record, &defaults::controller_config()), Ok(stored));
+}
+
+// ---- the data recorder ----
+
+#[test]
+fn recorder_configuration_and_its_errors() {
+    Rig::new().transcript(&[
+        // Power-up: eight tables recording nothing, rate 1, trigger 0.
+        (b"TNR?\n", b"8\n"),
+        (b"RTR?\n", b"1\n"),
+        (b"DRC? 1 2\n", b"1=1 0 \n2=1 0\n"),
+        (b"DRT? 1\n", b"1=0 0\n"),
+        (b"DRL? 1\n", b"1=0\n"),
+        (b"DRC 1 1 2 2 1 3\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"DRC? 1 2 3\n", b"1=1 2 \n2=1 3 \n3=1 0\n"),
+        (b"DRC 3 1 259\n", b""),
+        (b"DRC?\n", b"1=1 2 \n2=1 3 \n3=1 259 \n4=1 0 \n5=1 0 \n6=1 0 \n7=1 0 \n8=1 0\n"),
+        // Unknown table, unknown source, unknown option, syntax, counts.
+        (b"DRC 9 1 2\n", b""),
+        (b"ERR?\n", b"57\n"),
+        (b"DRC 0 1 2\n", b""),
+        (b"ERR?\n", b"57\n"),
+        (b"DRC 1 2 2\n", b""),
+        (b"ERR?\n", b"59\n"),
+        (b"DRC 1 1 4\n", b""),
+        (b"ERR?\n", b"58\n"),
+        (b"DRC 1 1 -1\n", b""),
+        (b"ERR?\n", b"58\n"),
+        (b"DRC 1 1 x\n", b""),
+        (b"ERR?\n", b"1\n"),
+        (b"DRC 1 1\n", b""),
+        (b"ERR?\n", b"24\n"),
+        (b"DRC\n", b""),
+        (b"ERR?\n", b"26\n"),
+        (b"DRC? 9\n", b""),
+        (b"ERR?\n", b"57\n"),
+        // One bad triple: nothing on the line is done.
+        (b"DRC 1 1 1 9 1 2\n", b""),
+        (b"ERR?\n", b"57\n"),
+        (b"DRC? 1\n", b"1=1 2\n"),
+        // The record rate.
+        (b"RTR 0\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"RTR 65536\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"RTR -3\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"RTR 2.5\n", b""),
+        (b"ERR?\n", b"1\n"),
+        (b"RTR\n", b""),
+        (b"ERR?\n", b"26\n"),
+        (b"RTR 1 2\n", b""),
+        (b"ERR?\n", b"24\n"),
+        (b"RTR? 1\n", b""),
+        (b"ERR?\n", b"24\n"),
+        (b"RTR 65535\n", b""),
+        (b"RTR?\n", b"65535\n"),
+        (b"RTR 10\n", b""),
+        (b"RTR?\n", b"10\n"),
+        (b"ERR?\n", b"0\n"),
+        // Triggers: PI's 0, 1, 2, 4, 6; not 3 (external).
+        (b"DRT 0 3 0\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"DRT 9 1 0\n", b""),
+        (b"ERR?\n", b"57\n"),
+        (b"DRT 1 1\n", b""),
+        (b"ERR?\n", b"24\n"),
+        (b"DRT 1 1 x\n", b""),
+        (b"ERR?\n", b"1\n"),
+        (b"DRT 0 6 0\n", b""),
+        (b"DRT? 1 8\n", b"1=6 0 \n8=6 0\n"),
+        (b"DRT 2 1 0\n", b""),
+        (b"DRT? 1 2\n", b"1=6 0 \n2=1 0\n"),
+        (b"TNR? 1\n", b""),
+        (b"ERR?\n", b"24\n"),
+        // Reading before anything was recorded, or a table that records nothing.
+        (b"DRR?\n", b""),
+        (b"ERR?\n", b"77\n"),
+        (b"DRR? 1 10 4\n", b""),
+        (b"ERR?\n", b"78\n"),
+        (b"DRR? 0 10 1\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"DRR? 1 0 1\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"DRR? 1 10 9\n", b""),
+        (b"ERR?\n", b"57\n"),
+        (b"DRR? x\n", b""),
+        (b"ERR?\n", b"1\n"),
+        (b"DRR? 1 10 1 2 3 1 2 3 1 2 3\n", b""),
+        (b"ERR?\n", b"24\n"),
+        (b"ERR?\n", b"0\n"),
+    ]);
+}
+
+#[test]
+fn recorder_options_for_pipython() {
+    Rig::new().transcript(&[(
+        b"HDR?\n",
+        b"#RecordOptions \n\
+0=Nothing is recorded \n\
+1=Commanded position of axis (mm) \n\
+2=Actual position of axis (mm) \n\
+3=Position error of axis (mm) \n\
+256=Drive amplitude of axis (V peak-to-peak) \n\
+257=Drive frequency of axis (Hz) \n\
+258=Preload force of axis (N) \n\
+259=Controller state of axis (0 idle, 1 moving, 2 holding, 3 referencing, 4 open loop, 10 + fault code) \n\
+#TriggerOptions \n\
+0=Default setting: as 1 \n\
+1=Any command changing the target position (MOV, MVR, XOS) restarts recording \n\
+2=Next command, then reset \n\
+4=Immediately \n\
+6=Next command changing the target position (MOV, MVR, XOS), then reset \n\
+#Additional information \n\
+360 datapoints per table \n\
+8 record tables; record rate RTR in control ticks (servo update time: parameter 0x0E000200) \n\
+end of help\n",
+    )]);
+    // PIPython's datarectools reads the servo update time from PI's parameter 0x0E000200.
+    Rig::new().transcript(&[
+        (b"SPA? 1 0x0E000200\n", b"1 0xE000200=0.0001\n"),
+        (b"SPA? 1 234881536\n", b"1 0xE000200=0.0001\n"),
+        (b"SPA 1 0x0E000200 0.001\n", b""),
+        (b"ERR?\n", b"64\n"),
+    ]);
+}
+
+#[test]
+fn a_recording_started_immediately_reads_back_in_pis_array_format() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"RTR 2\n", b""),
+        (b"DRC 1 1 2 2 1 259 3 1 258\n", b""),
+        (b"DRT 0 4 0\n", b""),
+        (b"ERR?\n", b"0\n"),
+        // Point 1 is taken by DRT itself.
+        (b"DRL? 1 2 3 4\n", b"1=1 \n2=1 \n3=1 \n4=0\n"),
+    ]);
+    // 1 µm (20 counts of 50 nm), then 2 µm: a point every second tick.
+    rig.encoder = 20;
+    rig.steps(1, Inputs::default());
+    rig.transcript(&[(b"DRL? 1\n", b"1=1\n")]);
+    rig.steps(1, Inputs::default());
+    rig.encoder = 40;
+    rig.steps(2, Inputs::default());
+    rig.transcript(&[
+        (b"DRL? 1\n", b"1=3\n"),
+        (
+            b"DRR? 1 3 1 2 3\n",
+            b"# VERSION = 1 \n\
+# TYPE = 1 \n\
+# SEPARATOR = 32 \n\
+# DIM = 3 \n\
+# SAMPLE_TIME = 0.0002 \n\
+# NDATA = 3 \n\
+# NAME0 = Actual position of axis 1 (mm) \n\
+# NAME1 = Controller state of axis 1 (0 idle, 1 moving, 2 holding, 3 referencing, 4 open loop, 10 + fault code) \n\
+# NAME2 = Preload force of axis 1 (N) \n\
+# END_HEADER \n\
+0.000000 0 15.995 \n\
+0.001000 0 15.995 \n\
+0.002000 0 15.995\n",
+        ),
+        // From point 2, one point, table 1 only; more points than recorded: what there is.
+        (
+            b"DRR? 2 1 1\n",
+            b"# VERSION = 1 \n# TYPE = 1 \n# SEPARATOR = 32 \n# DIM = 1 \n# SAMPLE_TIME = 0.0002 \n\
+# NDATA = 1 \n# NAME0 = Actual position of axis 1 (mm) \n# END_HEADER \n0.001000\n",
+        ),
+        (
+            b"DRR? 3 100 1\n",
+            b"# VERSION = 1 \n# TYPE = 1 \n# SEPARATOR = 32 \n# DIM = 1 \n# SAMPLE_TIME = 0.0002 \n\
+# NDATA = 1 \n# NAME0 = Actual position of axis 1 (mm) \n# END_HEADER \n0.002000\n",
+        ),
+        (b"DRR? 4 1 1\n", b""),
+        (b"ERR?\n", b"77\n"),
+        // DRC forgets the table's points.
+        (b"DRC 3 1 258\n", b""),
+        (b"DRL? 3\n", b"3=0\n"),
+        (b"ERR?\n", b"0\n"),
+    ]);
+}
+
+#[test]
+fn a_recording_that_overruns_stops_full_and_a_long_reply_comes_in_parts() {
+    let mut rig = Rig::new();
+    rig.send(b"DRC 1 1 1 2 1 2 3 1 3 4 1 256 5 1 257 6 1 258 7 1 259 8 1 2\nDRT 0 4 0\n");
+    rig.steps(recorder_depth() + 50, Inputs::default());
+    rig.transcript(&[
+        (b"DRL? 1 8\n", format!("1={d} \n8={d}\n", d = recorder_depth()).as_bytes()),
+        (b"ERR?\n", b"0\n"),
+    ]);
+    let parts = rig.send_parts(b"DRR?\n");
+    assert!(parts.len() > 2, "{} parts", parts.len());
+    for p in &parts {
+        assert!(p.len() <= piezo_drive::gcs::REPLY_CAPACITY);
+        assert!(!p.contains(&b'\r'));
+    }
+    let all = String::from_utf8(parts.concat()).unwrap();
+    let lines: Vec<&str> = all.split('\n').collect();
+    // Header (10 + 8 names), the points, and nothing after the final LF.
+    assert_eq!(lines.len(), 6 + 8 + 1 + recorder_depth() + 1);
+    assert_eq!(lines[5], format!("# NDATA = {} ", recorder_depth()));
+    assert_eq!(lines[14], "# END_HEADER ");
+    let (last, rows) = lines[15..].split_last().unwrap();
+    assert_eq!(*last, "");
+    for (i, row) in rows.iter().enumerate() {
+        let end = if i + 1 == rows.len() { "" } else { " " };
+        assert!(row.ends_with(end) && !row.ends_with("  "), "row {i}: {row:?}");
+        let cols: Vec<&str> = row.trim_end().split(' ').collect();
+        // At rest, servo off: commanded = actual = 0, no error, no drive, 2200 Hz, 16 N, idle.
+        assert_eq!(
+            cols,
+            ["0.000000", "0.000000", "0.000000", "0.000", "2200.000", "15.995", "0", "0.000000"]
+        );
+    }
+    // The last point and no further.
+    let d = recorder_depth();
+    assert!(rig.send(format!("DRR? {d} 1 1\n").as_bytes()).ends_with(b"# END_HEADER \n0.000000\n"));
+    rig.transcript(&[(format!("DRR? {} 1 1\n", d + 1).as_bytes(), b""), (b"ERR?\n", b"77\n")]);
+    // A new command drops the rest of a long reply.
+    rig.send(b"DRR?\n");
+    assert!(!rig.gcs.reply_pending());
+}
+
+fn recorder_depth() -> usize {
+    piezo_drive::recorder::DEPTH
+}
+
+#[test]
+fn moves_trigger_the_recorder() {
+    let mut rig = Rig::new();
+    rig.ready();
+    rig.transcript(&[
+        (b"DRC 1 1 1 2 1 2 3 1 3\n", b""),
+        // Table 1: the next move only; tables 2 and 3: every move.
+        (b"DRT 1 6 0 2 1 0 3 0 0\n", b""),
+        (b"ERR?\n", b"0\n"),
+    ]);
+    rig.steps(5, Inputs::default());
+    rig.transcript(&[
+        (b"DRL?\n", b"1=0 \n2=0 \n3=0 \n4=0 \n5=0 \n6=0 \n7=0 \n8=0\n"),
+        // Refused moves trigger nothing.
+        (b"MOV 1 1000\n", b""),
+        (b"ERR?\n", b"7\n"),
+        (b"DRL? 1 2\n", b"1=0 \n2=0\n"),
+        (b"MOV 1 0.01\n", b""),
+        // Point 1 at the command: the commanded position has not moved yet.
+        (b"DRL? 1 2 3\n", b"1=1 \n2=1 \n3=1\n"),
+        (
+            b"DRR? 1 1 1 2 3\n",
+            b"# VERSION = 1 \n# TYPE = 1 \n# SEPARATOR = 32 \n# DIM = 3 \n\
+# SAMPLE_TIME = 0.0001 \n# NDATA = 1 \n# NAME0 = Commanded position of axis 1 (mm) \n\
+# NAME1 = Actual position of axis 1 (mm) \n# NAME2 = Position error of axis 1 (mm) \n# END_HEADER \n\
+0.000000 0.000000 0.000000\n",
+        ),
+    ]);
+    rig.steps(9, Inputs::default());
+    rig.transcript(&[(b"DRL? 1 2 3\n", b"1=10 \n2=10 \n3=10\n"), (b"MVR 1 0.01\n", b"")]);
+    // The second move restarts tables 2 and 3, not table 1.
+    rig.transcript(&[(b"DRL? 1 2 3\n", b"1=10 \n2=1 \n3=1\n")]);
+    // Point 10 of table 1: the commanded position nine periods into the first move.
+    let reply = String::from_utf8(rig.send(b"DRR? 10 1 1\n")).unwrap();
+    let commanded: f64 = reply.rsplit(" \n").next().unwrap().trim_end().parse().unwrap();
+    assert!(commanded > 0.0 && commanded < 0.01, "{reply}");
+    // Open-loop stepping (servo off) is a target-changing command too.
+    rig.transcript(&[
+        (b"SVO 1 0\n", b""),
+        (b"DRT 0 6 0\n", b""),
+        (b"XOS 1 10 50 1500\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"DRL? 1 2 3\n", b"1=1 \n2=1 \n3=1\n"),
+    ]);
+}
+
+#[test]
+fn trigger_2_starts_on_the_next_command_whatever_it_is() {
+    let mut rig = Rig::new();
+    rig.transcript(&[
+        (b"DRC 1 1 2 2 1 2\n", b""),
+        (b"DRT 1 2 0 2 6 0\n", b""),
+        // The command after DRT starts table 1 once it has run (its own reply comes first).
+        (b"DRL? 1 2\n", b"1=0 \n2=0\n"),
+        (b"DRL? 1 2\n", b"1=1 \n2=0\n"),
+        (b"ERR?\n", b"0\n"),
+    ]);
+    rig.steps(3, Inputs::default());
+    // Reset after it: later commands leave it recording.
+    rig.transcript(&[(b"DRL? 1\n", b"1=4\n"), (b"DRL? 1\n", b"1=4\n")]);
+    // A DRT for another table does not start table 1 armed again; the command after it does.
+    rig.transcript(&[
+        (b"DRT 1 2 0\n", b""),
+        (b"DRT 2 6 0\n", b""),
+        (b"DRL? 1\n", b"1=0\n"),
+        (b"DRL? 1\n", b"1=1\n"),
+    ]);
 }

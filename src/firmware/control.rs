@@ -23,6 +23,7 @@
 //!    4100, `XFT?` 6) and records the fault in no-init RAM; `SVO` clears it as any motion error.
 //! 3. **Step**: encoder count, preload word, index latch → `Controller::step`; its samples wait
 //!    for the next tick; a disabled enable in its outputs drops the pin at once.
+//!    Then the data recorder takes its points from the controller ([`RECORDER`]).
 //! 4. **Watchdogs**: the IWDG (50 ms) and the WWDG (~1 ms, see `safety.rs`) are fed only by a
 //!    tick that was on time.
 //!
@@ -46,6 +47,7 @@ use embassy_stm32::timer::low_level::Timer;
 use embassy_stm32::Peri;
 use piezo_drive::controller::{Controller, FaultCode, Inputs, DAC_SAMPLES_PER_STEP};
 use piezo_drive::gcs::LoopStats;
+use piezo_drive::recorder::Recorder;
 use piezo_drive::safety::fault_record::FaultKind;
 use piezo_drive::safety::soft_start::SoftStart;
 use piezo_drive::safety::timing::{DeadlineMonitor, LeakyBucket, OverrunSupervisor};
@@ -108,6 +110,10 @@ impl<T> TickLock<T> {
 
 /// The controller, shared by the tick (every 100 µs) and the UART task (per command).
 pub static CONTROLLER: TickLock<Option<Controller>> = TickLock::new(None);
+/// The data recorder (11.5 KiB of points, zero-initialised): the tick stores a point after each
+/// step, the UART task reads it without a lock (atomics, see `piezo_drive::recorder`); the
+/// commands that reconfigure or trigger it run with the controller locked, so never during a tick.
+pub static RECORDER: Recorder = Recorder::new();
 /// Ticks without a new preload sample after which the tick hands the core an invalid word
 /// (20 ms, twenty missed 1 kHz samples): a stuck ADC task becomes the core's preload-sensor fault
 /// instead of a frozen force reading, while the watchdogs only watch the tick.
@@ -360,6 +366,9 @@ fn TIM7_DAC() {
     if !t.pending_enable {
         // A fault drops the enable now, not at the next refill.
         t.amp_enable.set_low();
+    }
+    if let Some(c) = controller.as_ref() {
+        RECORDER.sample(c);
     }
 
     let cycles = DWT::cycle_count().wrapping_sub(start);

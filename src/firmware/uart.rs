@@ -14,8 +14,9 @@ use embassy_stm32::usart::BufferedUart;
 use embedded_io_async::{Read, Write};
 use piezo_drive::controller::ControllerConfig;
 use piezo_drive::gcs::{Board, Gcs, LoopStats, Pending, Reply};
+use piezo_drive::recorder::Recorder;
 
-use super::control::{loop_stats, CONTROLLER};
+use super::control::{loop_stats, CONTROLLER, RECORDER};
 use super::params_flash;
 
 pub const BAUD: u32 = 115_200;
@@ -33,6 +34,9 @@ impl Board for FwBoard {
     }
     fn loop_stats(&self) -> LoopStats {
         loop_stats()
+    }
+    fn recorder(&self) -> Option<&Recorder> {
+        Some(&RECORDER)
     }
 }
 
@@ -84,6 +88,14 @@ pub async fn uart_task(mut uart: BufferedUart<'static>) {
             reply.clear();
             execute(&mut gcs, &pending, &mut board, &mut reply);
             if !reply.is_empty() {
+                if let Err(e) = uart.write_all(&reply).await {
+                    defmt::warn!("uart: {}", e);
+                }
+            }
+            // A reply longer than the buffer (`DRR?`): part by part, formatted without a lock.
+            while gcs.reply_pending() {
+                reply.clear();
+                gcs.continue_reply(&board, &mut reply);
                 if let Err(e) = uart.write_all(&reply).await {
                     defmt::warn!("uart: {}", e);
                 }

@@ -8,10 +8,12 @@
 //! commands of their own, without LF. A failing command replies nothing and latches a GCS error
 //! number that `ERR?` returns and clears; a line with any invalid part executes nothing.
 
+pub mod datarec;
 pub mod num;
 pub mod params;
 
 use crate::controller::{validate_settings, CommandError, Controller, ControllerConfig, FaultCode, State};
+use crate::recorder::Recorder;
 use num::{
     parse_decimal, parse_int, write_fixed, write_general, write_i64, write_scaled, write_u64, Decimal,
 };
@@ -39,6 +41,12 @@ pub trait Board {
     fn serial_number(&self) -> u32;
     /// Control-loop timing for a diagnostics query (our extension).
     fn loop_stats(&self) -> LoopStats;
+    /// The data recorder (`DRC`, `DRT`, `RTR`, `DRR?`, …; see [`datarec`]), filled by the
+    /// board's control tick ([`Recorder::sample`]); none by default, and then the recorder's
+    /// commands are unknown commands.
+    fn recorder(&self) -> Option<&Recorder> {
+        None
+    }
 }
 
 /// GCS error numbers used here.
@@ -60,7 +68,14 @@ pub mod error {
     pub const REF_WITH_REF_DISABLED: i32 = 50;
     pub const UNKNOWN_PARAMETER: i32 = 54;
     pub const INVALID_PASSWORD: i32 = 56;
+    /// Data recorder: no such record table, record option, record source (axis).
+    pub const INVALID_RECORD_TABLE: i32 = 57;
+    pub const INVALID_RECORD_OPTION: i32 = 58;
+    pub const INVALID_RECORD_SOURCE: i32 = 59;
     pub const READ_ONLY_PARAMETER: i32 = 64;
+    /// Data recorder: fewer points recorded than asked for; a table that records nothing.
+    pub const NOT_ENOUGH_RECORDED_DATA: i32 = 77;
+    pub const TABLE_NOT_CONFIGURED: i32 = 78;
     pub const OPEN_LOOP_WITH_SERVO_ON: i32 = 303;
     pub const SENSOR_SIGNAL_INVALID: i32 = 505;
     pub const CONTROLLER_BUSY: i32 = 1005;
@@ -135,9 +150,31 @@ pub static COMMANDS: &[Command] = &[
     Command::line("CSV?", "", "Get Current Syntax Version", csv_query),
     Command::settings("DEC", "{<AxisID> <Deceleration>}", "Set Closed-Loop Deceleration", dec),
     Command::line("DEC?", "[{<AxisID>}]", "Get Closed-Loop Deceleration", dec_query),
+    Command::line(
+        "DRC",
+        "{<RecTableID> <Source> <RecOption>}",
+        "Set Data Recorder Configuration",
+        datarec::drc,
+    ),
+    Command::line("DRC?", "[{<RecTableID>}]", "Get Data Recorder Configuration", datarec::drc_query),
+    Command::line("DRL?", "[{<RecTableID>}]", "Get Number Of Recorded Points", datarec::drl_query),
+    Command::line(
+        "DRR?",
+        "[<StartPoint> [<NumberOfPoints> [{<RecTableID>}]]]",
+        "Get Recorded Data Values",
+        datarec::drr_query,
+    ),
+    Command::line(
+        "DRT",
+        "{<RecTableID> <TriggerSource> <Value>}",
+        "Set Data Recorder Trigger Source",
+        datarec::drt,
+    ),
+    Command::line("DRT?", "[{<RecTableID>}]", "Get Data Recorder Trigger Source", datarec::drt_query),
     Command::line("ERR?", "", "Get Error Number", err_query),
     Command::line("FRF", "[{<AxisID>}]", "Fast Reference Move To Reference Mark", frf),
     Command::line("FRF?", "[{<AxisID>}]", "Get Referencing Result", frf_query),
+    Command::line("HDR?", "", "Get All Data Recorder Options", datarec::hdr_query),
     Command::line("HLP?", "", "Get List Of Available Commands", hlp_query),
     Command::line("HLT", "[{<AxisID>}]", "Halt Motion Smoothly", hlt),
     Command::line("HPA?", "", "Get List Of Available Parameters", hpa_query),
@@ -149,6 +186,8 @@ pub static COMMANDS: &[Command] = &[
     Command::line("POS?", "[{<AxisID>}]", "Get Real Position", pos_query),
     Command::line("RON", "{<AxisID> <ReferenceOn>}", "Set Reference Mode", ron),
     Command::line("RON?", "[{<AxisID>}]", "Get Reference Mode", ron_query),
+    Command::line("RTR", "<RecordTableRate>", "Set Record Table Rate", datarec::rtr),
+    Command::line("RTR?", "", "Get Record Table Rate", datarec::rtr_query),
     Command::line("SAI?", "[ALL]", "Get List Of Current Axis Identifiers", sai_query),
     Command::settings("SPA", "{<ItemID> <PamID> <PamValue>}", "Set Volatile Memory Parameters", spa),
     Command::line("SPA?", "[{<ItemID> <PamID>}]", "Get Volatile Memory Parameters", spa_query),
@@ -157,6 +196,7 @@ pub static COMMANDS: &[Command] = &[
     Command::line("SVO?", "[{<AxisID>}]", "Get Servo Mode", svo_query),
     Command::line("TMN?", "[{<AxisID>}]", "Get Minimum Commandable Position", tmn_query),
     Command::line("TMX?", "[{<AxisID>}]", "Get Maximum Commandable Position", tmx_query),
+    Command::line("TNR?", "", "Get Number Of Record Tables", datarec::tnr_query),
     Command::settings("VEL", "{<AxisID> <Velocity>}", "Set Closed-Loop Velocity", vel),
     Command::line("VEL?", "[{<AxisID>}]", "Get Closed-Loop Velocity", vel_query),
     Command::line(
@@ -214,6 +254,7 @@ impl Out<'_> {
         }
         self.lines = self.lines.saturating_add(1);
     }
+    #[inline(never)]
     fn s(&mut self, text: &str) {
         num::Sink::put(self, text.as_bytes());
     }
@@ -236,6 +277,18 @@ impl Out<'_> {
     fn general(&mut self, v: f64) {
         write_general(self, v);
     }
+    /// Bytes the reply buffer still takes.
+    fn room(&self) -> usize {
+        self.buf.capacity().saturating_sub(self.buf.len())
+    }
+    /// Ends the last line as one more follows in the next reply (space + LF), so that
+    /// [`Out::finish`] adds nothing.
+    fn open_end(&mut self) {
+        if self.lines > 0 {
+            self.s(" \n");
+        }
+        self.lines = 0;
+    }
     fn finish(&mut self) {
         if self.lines > 0 {
             self.s("\n");
@@ -251,6 +304,8 @@ pub struct Gcs {
     reference_mode: bool,
     seen_faults: u32,
     seen_reference_failures: u32,
+    /// The rest of a `DRR?` reply, while one is being sent.
+    drr: Option<datarec::DrrCursor>,
 }
 
 impl Default for Gcs {
@@ -361,6 +416,7 @@ impl Gcs {
             reference_mode: true,
             seen_faults: 0,
             seen_reference_failures: 0,
+            drr: None,
         }
     }
 
@@ -432,6 +488,32 @@ impl Gcs {
         COMMANDS.iter().any(|c| c.settings_only && c.name.as_bytes().eq_ignore_ascii_case(cmd))
     }
 
+    /// Whether the last command's reply goes on (a `DRR?` longer than one reply buffer): call
+    /// [`Gcs::continue_reply`] with an empty buffer and send what it adds until this is false.
+    /// A new command drops what is left.
+    pub fn reply_pending(&self) -> bool {
+        self.drr.is_some()
+    }
+
+    /// The next part of a reply that goes on (see [`Gcs::reply_pending`]), appended to `reply`
+    /// (give it an empty one: a part is as long as the buffer takes).
+    pub fn continue_reply(&mut self, board: &dyn Board, reply: &mut Reply) {
+        let Some(mut cursor) = self.drr.take() else { return };
+        let Some(rec) = board.recorder() else { return };
+        let mut out = Out { buf: reply, lines: 0, ok: true };
+        let before = cursor.rows_left();
+        if datarec::write_rows(&mut cursor, rec, &mut out) {
+            if cursor.rows_left() == before {
+                // No room for a single row: the caller's buffer was not empty. Give up.
+                return;
+            }
+            out.open_end();
+            self.drr = Some(cursor);
+        } else {
+            out.finish();
+        }
+    }
+
     /// The latched error (without clearing it).
     pub fn latched_error(&self) -> i32 {
         self.error
@@ -458,6 +540,7 @@ impl Gcs {
             self.seen_reference_failures = ctl.reference_failure_count();
             self.error = error::REFERENCING_FAILED;
         }
+        self.drr = None;
         let start = reply.len();
         let mut out = Out { buf: reply, lines: 0, ok: true };
         let result = match pending {
@@ -467,9 +550,18 @@ impl Gcs {
         };
         out.finish();
         let result = if out.ok { result } else { Err(error::COMMAND_TOO_LONG) };
+        // The recorder's trigger 2: any command but the `DRT` that sets it.
+        if let Some(rec) = board.recorder() {
+            let drt = matches!(pending, Pending::Line(l)
+                if l.split(|&b| is_space(b)).find(|t| !t.is_empty()).is_some_and(|c| c.eq_ignore_ascii_case(b"DRT")));
+            if !drt {
+                rec.on_command(ctl);
+            }
+        }
         if let Err(code) = result {
             reply.truncate(start);
             self.error = code;
+            self.drr = None;
         }
     }
 
@@ -894,19 +986,27 @@ fn pos(gcs: &mut Gcs, c: Call) -> GcsResult {
     Ok(())
 }
 
+/// A command that changes the target was accepted: the recorder's move trigger.
+fn moved(ctl: &Controller, board: &dyn Board) {
+    if let Some(rec) = board.recorder() {
+        rec.on_move(ctl);
+    }
+}
+
 fn mov(gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, ctl, .. } = c;
+    let Call { args, ctl, board, .. } = c;
     // Syntax of every pair, then whether a move is allowed at all, then the limits
     // of every pair.
     pairs(args, position_nm)?;
     gcs.move_allowed(ctl)?;
     let target = pairs(args, |t| within_travel(ctl, position_nm(t)?))?;
     ctl.move_to(target).map_err(command_error)?;
+    moved(ctl, board);
     Ok(())
 }
 
 fn mvr(gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, ctl, .. } = c;
+    let Call { args, ctl, board, .. } = c;
     pairs(args, position_nm)?;
     gcs.move_allowed(ctl)?;
     let base = ctl.target_nm();
@@ -915,6 +1015,7 @@ fn mvr(gcs: &mut Gcs, c: Call) -> GcsResult {
         within_travel(ctl, target)
     })?;
     ctl.move_to(target).map_err(command_error)?;
+    moved(ctl, board);
     Ok(())
 }
 
@@ -1000,7 +1101,7 @@ fn wpa(_gcs: &mut Gcs, c: Call) -> GcsResult {
 }
 
 fn xos(_gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, ctl, .. } = c;
+    let Call { args, ctl, board, .. } = c;
     let [a, cycles, amplitude, frequency] = args else {
         return Err(if args.is_empty() { error::MISSING_PARAM } else { error::WRONG_PARAM_COUNT });
     };
@@ -1015,6 +1116,7 @@ fn xos(_gcs: &mut Gcs, c: Call) -> GcsResult {
     let amplitude = to_f32(&amplitude).ok_or(error::PARAM_OUT_OF_RANGE)?;
     let frequency = to_f32(&frequency).ok_or(error::PARAM_OUT_OF_RANGE)?;
     ctl.open_loop_step(cycles, amplitude, frequency).map_err(command_error)?;
+    moved(ctl, board);
     Ok(())
 }
 

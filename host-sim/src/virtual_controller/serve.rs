@@ -8,6 +8,7 @@ use crate::motor::params::Params;
 use anyhow::{bail, Context, Result};
 use piezo_drive::controller::ControllerConfig;
 use piezo_drive::gcs::{Board, Gcs, LoopStats, Pending, Reply};
+use piezo_drive::recorder::Recorder;
 use piezo_drive::storage;
 use std::fmt::Write as _;
 use std::io::{ErrorKind, Read, Write};
@@ -44,6 +45,8 @@ pub struct SimBoard {
     /// Last `WPA` record when there is no file.
     pub stored: Option<Vec<u8>>,
     pub stats: LoopStats,
+    /// The data recorder, filled after every control period as on the board.
+    pub recorder: Box<Recorder>,
 }
 
 impl Board for SimBoard {
@@ -67,6 +70,9 @@ impl Board for SimBoard {
     }
     fn loop_stats(&self) -> LoopStats {
         self.stats
+    }
+    fn recorder(&self) -> Option<&Recorder> {
+        Some(&self.recorder)
     }
 }
 
@@ -153,7 +159,12 @@ impl VirtualController {
         let mut vc = VirtualController {
             sil,
             gcs: Gcs::new(),
-            board: SimBoard { store: args.store.clone(), stored: None, stats: LoopStats::default() },
+            board: SimBoard {
+                store: args.store.clone(),
+                stored: None,
+                stats: LoopStats::default(),
+                recorder: Box::default(),
+            },
             verbose: args.verbose,
             start: Instant::now(),
             sim_start_s: 0.0,
@@ -177,19 +188,28 @@ impl VirtualController {
             self.sim_start_s += behind - 0.1;
         }
         while self.sil.time_s() - self.sim_start_s < wall {
-            self.sil.period();
+            self.period();
             let ns = u32::try_from(self.sil.last_step_ns).unwrap_or(u32::MAX);
             self.board.stats.step_cycles_last = ns;
             self.board.stats.step_cycles_max = self.board.stats.step_cycles_max.max(ns);
         }
     }
 
+    /// One control period, then the recorder's point (as the board's tick does).
+    pub fn period(&mut self) {
+        self.sil.period();
+        self.board.recorder.sample(&self.sil.controller);
+    }
+
     /// Feeds received bytes through the protocol; replies are appended to `out` (which must
-    /// have room for them all: tests only).
+    /// have room for them all: tests only; a `DRR?` goes on only while it has room).
     pub fn feed(&mut self, bytes: &[u8], out: &mut Reply) {
         for &b in bytes {
             if let Some(p) = self.gcs.push_byte(b) {
                 self.execute(&p, out);
+                while self.gcs.reply_pending() {
+                    self.gcs.continue_reply(&self.board, out);
+                }
             }
         }
     }
@@ -208,6 +228,14 @@ impl VirtualController {
                 self.execute(&p, &mut out);
                 if !out.is_empty() {
                     write(&out)?;
+                }
+                // A reply longer than one buffer (`DRR?`), part by part as on the board.
+                while self.gcs.reply_pending() {
+                    out.clear();
+                    self.gcs.continue_reply(&self.board, &mut out);
+                    if !out.is_empty() {
+                        write(&out)?;
+                    }
                 }
             }
         }

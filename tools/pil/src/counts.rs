@@ -8,6 +8,7 @@ use piezo_drive::controller::{Controller, Inputs, DAC_SAMPLES_PER_STEP};
 use piezo_drive::defaults::controller_config;
 use piezo_drive::gcs::{Board, Gcs, LoopStats, Pending, Reply};
 use piezo_drive::generator::QuadratureGenerator;
+use piezo_drive::recorder::{trigger, Recorder, DEPTH};
 use piezo_drive::Fx;
 
 use crate::{calibrate, counts, Stat};
@@ -94,6 +95,7 @@ pub fn hot_paths() {
     moving.print("Controller::step while moving (1 mm at 16 N)", k);
     holding.print("Controller::step while holding", k);
     hprintln!("final state {:?}, position {} nm", ctl.state(), ctl.position_nm());
+    recorder_sample(&ctl, k);
 
     // The states the PIL moves do not visit: referencing (an index search that finds nothing
     // within these periods) and open-loop stepping (servo off, XOS), the tick counted as PIL
@@ -216,6 +218,28 @@ pub fn hot_paths() {
     speed.print("ThrustPoint::speed_at_load_mm_s (false position)", k);
     thrust.print("ThrustPoint::thrust_n (one model evaluation)", k);
     gcs_lock_times(&ctl, k);
+}
+
+static RECORDER: Recorder = Recorder::new();
+
+/// The data recorder's share of the tick (`Recorder::sample` after the step, as the firmware's
+/// tick calls it): no table recording, then all eight recording a point every tick (`RTR 1`,
+/// the most it ever does).
+fn recorder_sample(ctl: &Controller, k: f32) {
+    let mut quiet = Stat::new();
+    for _ in 0..200 {
+        quiet.add(counts(|| RECORDER.sample(core::hint::black_box(ctl))));
+    }
+    quiet.print("Recorder::sample, no table recording", k);
+    for (i, opt) in [1, 2, 3, 256, 257, 258, 259, 2].into_iter().enumerate() {
+        let _ = RECORDER.configure(i + 1, opt);
+    }
+    let _ = RECORDER.set_trigger(0, trigger::IMMEDIATELY, ctl);
+    let mut full = Stat::new();
+    for _ in 1..DEPTH {
+        full.add(counts(|| RECORDER.sample(core::hint::black_box(ctl))));
+    }
+    full.print("Recorder::sample, 8 tables recording every tick (RTR 1)", k);
 }
 
 struct NoBoard;
