@@ -132,6 +132,7 @@ pub fn with_defaults(hw: &Hardware, unset: Unset) -> ControllerConfig {
         reference_position_nm: n,
         reference_drive_v: f,
         reference_timeout_s: f,
+        moving_mass_kg: f,
     };
     crate::settings::apply_fixed_defaults(&mut cfg);
     // The settings whose default is `hardware(..)` in the table.
@@ -140,5 +141,6 @@ pub fn with_defaults(hw: &Hardware, unset: Unset) -> ControllerConfig {
     cfg.preload.newton_per_word = hw.force_cell_newton_per_word;
     cfg.preload.max_valid_word = hw.force_cell_max_word;
     cfg.preload_max_n = full_contact_preload_n(&cfg);
+    cfg.moving_mass_kg = hw.motor.moving_mass_kg.to_num();
     cfg
 }

@@ -426,6 +426,10 @@ settings! {
         "V", 1.0, POSITIVE, Stored, "Drive amplitude of the reference search"),
     (0x1019, "Referencing", reference_timeout_s: f32 = 200.0;
         "s", 1.0, POSITIVE, Stored, "Reference search timeout"),
+    // Appended last of the stored rows: a version-2 record is this record without it.
+    (0x101A, "Motor", moving_mass_kg: f32 = hardware("the motor table's moving mass");
+        "kg", 1.0, Range::Float { lo: 1e-3, hi: 1e3, lo_open: false }, Stored,
+        "Moving mass of the carriage and payload"),
     (0x1020, "Hardware", encoder_nm_per_count: u32 = hardware("the encoder's resolution");
         "nm per count", 1.0, Range::Int { lo: 1, hi: 1_000_000 }, ReadOnly, "Encoder resolution"),
     (0x1021, "Hardware", loop_hz: u32 = hardware("the DAC rate over 20 samples per period");

@@ -30,7 +30,7 @@ use crate::settings::{Setting, Ty, Value, SETTINGS};
 pub const MAGIC: u32 = u32::from_le_bytes(*b"PZDP");
 /// Format version; bump on any change of the payload (adding, removing, reordering a stored
 /// setting or changing its type), and teach [`decode`] the old layout.
-pub const VERSION: u16 = 2;
+pub const VERSION: u16 = 3;
 const HEADER_LEN: usize = 8;
 const CRC_LEN: usize = 4;
 
@@ -118,6 +118,24 @@ const fn v1_len() -> usize {
     }
     n
 }
+
+/// Settings added by version 3 (appended after version 2's last stored row): a version-2 record
+/// is this version's without them.
+const ADDED_IN_V3: [u32; 1] = [0x101A];
+
+const fn v2_len() -> usize {
+    let mut n = PAYLOAD_LEN;
+    let mut i = 0;
+    while i < ADDED_IN_V3.len() {
+        n -= setting_size(ADDED_IN_V3[i]);
+        i += 1;
+    }
+    n
+}
+
+/// Payload bytes of format version 2 (the settings table before the moving mass).
+pub const V2_PAYLOAD_LEN: usize = 140;
+const _: () = assert!(v2_len() == V2_PAYLOAD_LEN);
 
 /// Payload bytes of format version 1.
 pub const V1_PAYLOAD_LEN: usize = 119;
@@ -265,7 +283,7 @@ pub fn validate(cfg: &ControllerConfig) -> Result<(), StorageError> {
     }
 }
 
-/// Reads a record (this [`VERSION`] or version 1) from the start of `bytes` (extra bytes after
+/// Reads a record (this [`VERSION`], version 2 or version 1) from the start of `bytes` (extra bytes after
 /// it are ignored, so a whole flash page can be passed). Settings not in the record come from
 /// `defaults`.
 pub fn decode(bytes: &[u8], defaults: &ControllerConfig) -> Result<ControllerConfig, StorageError> {
@@ -277,6 +295,7 @@ pub fn decode(bytes: &[u8], defaults: &ControllerConfig) -> Result<ControllerCon
     let version = r.u16()?;
     let payload_len = match version {
         VERSION => PAYLOAD_LEN,
+        2 => V2_PAYLOAD_LEN,
         1 => V1_PAYLOAD_LEN,
         _ => return Err(StorageError::WrongVersion(version)),
     };
@@ -292,6 +311,10 @@ pub fn decode(bytes: &[u8], defaults: &ControllerConfig) -> Result<ControllerCon
     let mut cfg = *defaults;
     if version == VERSION {
         for s in SETTINGS.iter().filter(|s| s.stored) {
+            r.setting(s, &mut cfg)?;
+        }
+    } else if version == 2 {
+        for s in SETTINGS.iter().filter(|s| s.stored && !ADDED_IN_V3.contains(&s.id)) {
             r.setting(s, &mut cfg)?;
         }
     } else {

@@ -191,6 +191,7 @@ fn changed() -> piezo_drive::controller::ControllerConfig {
     c.reference_position_nm = -1_000_000;
     c.reference_drive_v = 40.0;
     c.reference_timeout_s = 100.0;
+    c.moving_mass_kg = 0.45;
     c
 }
 
@@ -258,6 +259,7 @@ fn what_the_controller_accepts_the_record_stores() {
 }
 
 /// Little-endian bytes of the values, in the order given.
+#[derive(Clone, Copy)]
 enum V {
     F(f32),
     I(i64),
@@ -288,55 +290,62 @@ fn record(version: u16, values: &[V]) -> Vec<u8> {
     rec
 }
 
-/// The version-2 layout, written out by hand: every stored setting in id order, in its
-/// type's width. A change here is a new format version.
+/// The version-3 layout, written out by hand: every stored setting in table order, in its
+/// type's width. A change here is a new format version. Version 2 was the same without the
+/// moving mass at the end; such a record still loads, the mass from the defaults.
 #[test]
-fn version_2_record_byte_for_byte() {
+fn version_3_record_byte_for_byte_and_version_2_still_loads() {
     use V::*;
-    let expected = record(
-        2,
-        &[
-            F(55.5),       // 0x1 kp
-            F(0.002),      // 0x2 ki
-            F(40_000.0),   // 0x8 following error (nm)
-            F(1.5e6),      // 0xA VEL (nm/s)
-            F(5e8),        // 0xB ACC
-            F(2.5e8),      // 0xC DEC
-            I(20_000_000), // 0x15 travel max (nm)
-            I(-3_500_000), // 0x30 travel min
-            I(100),        // 0x36 settling window
-            F(0.02),       // 0x3F settling time
-            F(1500.0),     // 0x1001 drive frequency
-            F(90.0),       // 0x1002 maximum drive
-            F(0.5),        // 0x1003 speed share
-            F(0.6),        // 0x1004 thrust share
-            B(0),          // 0x1005 feedforward
-            F(0.004),      // 0x1006 plain kp
-            F(0.3),        // 0x1007 plain ki
-            F(-1.25),      // 0x1008 expected load
-            F(3000.0),     // 0x1009 profile wait lag
-            F(250_000.0),  // 0x100A approach speed
-            F(500.0),      // 0x100B fine window
-            F(0.08),       // 0x100D stall time
-            I32(300),      // 0x100E encoder jump
-            F(4.0),        // 0x100F preload min
-            F(20.0),       // 0x1010 preload max
-            W(7),          // 0x1011 zero word
-            F(0.0125),     // 0x1012 N per word
-            W(3),          // 0x1013 lowest valid word
-            W(4000),       // 0x1014 highest valid word
-            F(0.05),       // 0x1015 filter
-            B(1),          // 0x1016 reference signal: negative limit
-            I(-1_000_000), // 0x1017 reference position
-            F(40.0),       // 0x1018 reference drive
-            F(100.0),      // 0x1019 reference timeout
-        ],
-    );
-    assert_eq!(VERSION, 2);
-    assert_eq!(PAYLOAD_LEN, 140);
-    assert_eq!(RECORD_LEN, 152);
+    let v2_fields = [
+        F(55.5),       // 0x1 kp
+        F(0.002),      // 0x2 ki
+        F(40_000.0),   // 0x8 following error (nm)
+        F(1.5e6),      // 0xA VEL (nm/s)
+        F(5e8),        // 0xB ACC
+        F(2.5e8),      // 0xC DEC
+        I(20_000_000), // 0x15 travel max (nm)
+        I(-3_500_000), // 0x30 travel min
+        I(100),        // 0x36 settling window
+        F(0.02),       // 0x3F settling time
+        F(1500.0),     // 0x1001 drive frequency
+        F(90.0),       // 0x1002 maximum drive
+        F(0.5),        // 0x1003 speed share
+        F(0.6),        // 0x1004 thrust share
+        B(0),          // 0x1005 feedforward
+        F(0.004),      // 0x1006 plain kp
+        F(0.3),        // 0x1007 plain ki
+        F(-1.25),      // 0x1008 expected load
+        F(3000.0),     // 0x1009 profile wait lag
+        F(250_000.0),  // 0x100A approach speed
+        F(500.0),      // 0x100B fine window
+        F(0.08),       // 0x100D stall time
+        I32(300),      // 0x100E encoder jump
+        F(4.0),        // 0x100F preload min
+        F(20.0),       // 0x1010 preload max
+        W(7),          // 0x1011 zero word
+        F(0.0125),     // 0x1012 N per word
+        W(3),          // 0x1013 lowest valid word
+        W(4000),       // 0x1014 highest valid word
+        F(0.05),       // 0x1015 filter
+        B(1),          // 0x1016 reference signal: negative limit
+        I(-1_000_000), // 0x1017 reference position
+        F(40.0),       // 0x1018 reference drive
+        F(100.0),      // 0x1019 reference timeout
+    ];
+    let mut v3_fields = v2_fields.to_vec();
+    v3_fields.push(F(0.45)); // 0x101A moving mass (kg)
+    let expected = record(3, &v3_fields);
+    assert_eq!(VERSION, 3);
+    assert_eq!(PAYLOAD_LEN, 144);
+    assert_eq!(RECORD_LEN, 156);
     assert_eq!(storage::encode(&changed()).to_vec(), expected);
     assert_eq!(storage::decode(&expected, &controller_config()), Ok(changed()));
+    // Version 2: everything but the mass, which comes from the defaults.
+    let v2 = record(2, &v2_fields);
+    assert_eq!(v2.len(), 8 + 140 + 4);
+    let mut want = changed();
+    want.moving_mass_kg = controller_config().moving_mass_kg;
+    assert_eq!(storage::decode(&v2, &controller_config()), Ok(want));
 }
 
 /// A record written by the firmware before the settings table (version 1, 119 payload bytes)
@@ -390,6 +399,7 @@ fn version_1_record_still_loads() {
     expected.reference_position_nm = d.reference_position_nm;
     expected.reference_drive_v = d.reference_drive_v;
     expected.reference_timeout_s = d.reference_timeout_s;
+    expected.moving_mass_kg = d.moving_mass_kg;
     assert_eq!(storage::decode(&v1, &d), Ok(expected));
     // As read from a flash page (erased bytes after it).
     let mut page = vec![0xFFu8; 2048];

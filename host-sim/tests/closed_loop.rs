@@ -5,7 +5,6 @@ use host_sim::harness::moves::{ready_board, run_move, single_move, MoveSpec};
 use host_sim::harness::sil::{controller_config, Sil};
 use host_sim::motor::params::Params;
 use host_sim::motor::plant::ExternalLoad;
-use host_sim::motor::steady::{OperatingPoint, ThrustModel};
 use piezo_drive::controller::{CommandError, FaultCode, State};
 
 fn board(preload_n: f64) -> (Params, Sil) {
@@ -14,20 +13,11 @@ fn board(preload_n: f64) -> (Params, Sil) {
     (p, sil)
 }
 
-/// Distance over the highest no-load speed reachable within 100 V and 0.5–2.2 kHz, plus the time
-/// to reach that speed at stall thrust (f64 steady-state model, no controller involved).
-fn physical_limit_s(p: &Params, preload_n: f64, distance_m: f64) -> f64 {
-    let best = (0..=34)
-        .map(|i| {
-            ThrustModel::new(
-                p,
-                OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz: 500.0 + 50.0 * i as f64 },
-            )
-        })
-        .max_by(|a, b| a.no_load_speed_m_s().total_cmp(&b.no_load_speed_m_s()))
-        .unwrap();
-    let v0 = best.no_load_speed_m_s();
-    distance_m / v0 + p.slider.mass_kg * v0 / best.stall_force_n()
+/// Distance over the highest no-load speed the time-domain plant reaches within 100 V and
+/// 0.5–2.2 kHz, plus the time to reach that speed at stall thrust (measured on the plant, no
+/// controller involved: `host_sim::harness::sweep::physical_limit_s`).
+fn physical_limit_s(p: &Params, distance_m: f64) -> f64 {
+    host_sim::harness::sweep::physical_limit_s(p, distance_m).0
 }
 
 fn assert_stays(sil: &mut Sil, target_nm: f64, seconds: f64) {
@@ -46,7 +36,7 @@ fn one_millimetre_move_settles_within_one_count_near_the_physical_limit() {
     let r = run_move(&mut sil, 1_000_000, 3.0, 0.05);
     assert!(r.fault.is_none(), "{:?}", r.fault);
     let settle = r.settle_time_s.expect("settled");
-    let limit = physical_limit_s(&p, 16.0, 1e-3);
+    let limit = physical_limit_s(&p, 1e-3);
     eprintln!("1 mm: settle {settle:.4} s, physical limit {limit:.4} s, overshoot {:.1} nm", r.overshoot_nm);
     assert!(settle <= 1.25 * limit, "settle {settle} s > 1.25 × {limit} s");
     assert!(r.overshoot_nm < 200.0, "overshoot {} nm", r.overshoot_nm);
@@ -155,4 +145,27 @@ fn feedforward_halves_the_peak_following_error_against_a_2_n_load() {
         with.max_following_error_um,
         without.max_following_error_um
     );
+}
+
+/// The controller knows the moving mass only as a parameter (`SPA 1 0x101A`): told half or
+/// twice the truth, the 1 mm move on the default carriage still settles within one count with
+/// no fault. Told twice the mass it overshoots under 200 nm (27.8 nm measured); told half, the
+/// model table treats the carriage as one that rides the foot (orbit grid, see
+/// `model_cache::RIDING_SHARE`), that model runs slow against the plant and over-drives the
+/// stop: 454 nm measured, held as a regression bound (issue 11 is open).
+#[test]
+fn a_moving_mass_parameter_off_by_two_either_way_still_settles() {
+    let p = Params::prototype();
+    for factor in [2.0f32, 0.5] {
+        let mut cfg = controller_config(&p);
+        cfg.moving_mass_kg *= factor;
+        let mut sil = ready_board(&p, cfg, 16.0).unwrap();
+        let r = run_move(&mut sil, 1_000_000, 3.0, 0.05);
+        eprintln!("mass × {factor}: settle {:?} s, overshoot {:.1} nm", r.settle_time_s, r.overshoot_nm);
+        assert!(r.fault.is_none(), "mass × {factor}: {:?}", r.fault);
+        assert!(r.settle_time_s.is_some(), "mass × {factor}: not settled");
+        let bound = if factor < 1.0 { 600.0 } else { 200.0 };
+        assert!(r.overshoot_nm < bound, "mass × {factor}: overshoot {} nm", r.overshoot_nm);
+        assert!(r.final_error_nm.abs() <= 50.0);
+    }
 }

@@ -60,6 +60,9 @@ pub struct ControllerConfig {
     pub reference_position_nm: i64,
     pub reference_drive_v: f32,
     pub reference_timeout_s: f32,
+    /// Moving mass of the carriage and its payload (kg): braking, speeding up and the load
+    /// observer's inertia term, and the model table's periodic motion (`crate::inertia`).
+    pub moving_mass_kg: f32,
 }
 
 /// Largest travel limit either way (1 m): positions stay far from i64 and f32 trouble.

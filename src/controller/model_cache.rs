@@ -435,7 +435,7 @@ impl Controller {
             preload_n,
             max_drive_v: self.cfg.max_drive_v,
             frequency_hz: self.cfg.drive_freq_hz,
-            moving_mass_kg: self.cfg.motor.moving_mass_kg.to_num(),
+            moving_mass_kg: self.cfg.moving_mass_kg,
             generation: self.model.generation,
         })
     }
@@ -448,7 +448,7 @@ impl Controller {
             && r.per_volt == self.model.per_volt
             && r.max_drive_v == self.cfg.max_drive_v
             && r.frequency_hz == self.cfg.drive_freq_hz
-            && r.moving_mass_kg == self.cfg.motor.moving_mass_kg.to_num::<f32>();
+            && r.moving_mass_kg == self.cfg.moving_mass_kg;
         if current {
             self.model.table = Some(table);
         }
