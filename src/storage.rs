@@ -125,10 +125,10 @@ const ADDED_IN_V3: [u32; 1] = [0x101A];
 
 const fn v2_len() -> usize {
     let mut n = PAYLOAD_LEN;
-    let mut i = 0;
-    while i < ADDED_IN_V3.len() {
-        n -= setting_size(ADDED_IN_V3[i]);
-        i += 1;
+    let mut rest: &[u32] = &ADDED_IN_V3;
+    while let [id, tail @ ..] = rest {
+        n -= setting_size(*id);
+        rest = tail;
     }
     n
 }
