@@ -54,6 +54,7 @@ const SET: &[(&str, &str, &str)] = &[
     ("0x1017", "-1", "-1.000000"),
     ("0x1018", "40", "40"),
     ("0x1019", "100", "100"),
+    ("0x101A", "0.45", "0.45"),
 ];
 
 /// The read-only parameters (hardware facts, not stored) at the simulated board's values:
@@ -118,7 +119,7 @@ fn wpa_then_restart_brings_back_every_stored_parameter_and_nothing_else() {
     c.preload.newton_per_word = 0.0125;
     (c.preload.min_valid_word, c.preload.max_valid_word, c.preload.filter_alpha) = (3, 4000, 0.05);
     (c.reference_signal, c.reference_position_nm) = (ReferenceSignal::NegativeLimit, -1_000_000);
-    (c.reference_drive_v, c.reference_timeout_s) = (40.0, 100.0);
+    (c.reference_drive_v, c.reference_timeout_s, c.moving_mass_kg) = (40.0, 100.0, 0.45);
     let record = std::fs::read(&store).expect("WPA wrote the store");
     assert_eq!(record, piezo_drive::storage::encode(&expected).to_vec());
 
