@@ -71,13 +71,9 @@ pub struct Reply {
 
 /// One byte per state: 0 idle, 1 moving, 2 holding, 3 referencing, 4 open loop, 0x80 + fault code.
 pub fn state_code(s: State) -> u8 {
-    match s {
-        State::Idle => 0,
-        State::Moving => 1,
-        State::Holding => 2,
-        State::Referencing => 3,
-        State::OpenLoop => 4,
-        State::Fault(code) => 0x80 | code as u8,
+    match s.number() {
+        Ok(n) => n,
+        Err(code) => 0x80 | code as u8,
     }
 }
 

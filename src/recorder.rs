@@ -192,13 +192,9 @@ fn nm_i32(nm: i64) -> i32 {
 
 /// The state code of option 259.
 pub fn state_code(s: State) -> i32 {
-    match s {
-        State::Idle => 0,
-        State::Moving => 1,
-        State::Holding => 2,
-        State::Referencing => 3,
-        State::OpenLoop => 4,
-        State::Fault(code) => 10 + code as i32,
+    match s.number() {
+        Ok(n) => i32::from(n),
+        Err(code) => 10 + code as i32,
     }
 }
 

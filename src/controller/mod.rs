@@ -94,6 +94,22 @@ pub enum State {
     Fault(FaultCode),
 }
 
+impl State {
+    /// The number the wire formats give a state that is not a fault (0 idle, 1 moving,
+    /// 2 holding, 3 referencing, 4 open loop), or the fault's code: each format (the PIL frame,
+    /// the data recorder) marks faults its own way.
+    pub fn number(self) -> Result<u8, FaultCode> {
+        match self {
+            State::Idle => Ok(0),
+            State::Moving => Ok(1),
+            State::Holding => Ok(2),
+            State::Referencing => Ok(3),
+            State::OpenLoop => Ok(4),
+            State::Fault(code) => Err(code),
+        }
+    }
+}
+
 /// What referencing looks for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
