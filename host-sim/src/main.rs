@@ -7,7 +7,8 @@ use clap::Parser;
 use cli::{Cli, Command};
 use host_sim::harness::moves;
 use host_sim::motor::params::Params;
-use host_sim::motor::steady::OperatingPoint;
+use host_sim::motor::steady::{OperatingPoint, ThrustModel};
+use host_sim::motor::steady_inertia::InertialModel;
 use host_sim::{check, curve, paper, plot};
 use std::io::Write;
 use std::process::ExitCode;
@@ -327,7 +328,23 @@ fn run(cli: Cli) -> Result<()> {
                 }
             }
         }
-        Command::Gap(args) => host_sim::gap::run(args.into(), &params)?,
+        Command::Gap(args) => {
+            host_sim::gap::run(args.into(), &params)?;
+            // The workflow's base model is the constant-speed model (eq. 19): say so (after the
+            // run, so that an input error stays one line) when this file's carriage is light
+            // enough for its inertia to move the speeds.
+            let op = OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 };
+            let constant = ThrustModel::new(&params, op).no_load_speed_m_s();
+            let inertial = InertialModel::new(&params, op).no_load_speed_m_s();
+            let off = (inertial - constant).abs() / constant.max(1e-12);
+            if off > 0.05 {
+                eprintln!(
+                    "warning: the {} kg carriage of this parameter file runs {:.0} % off the constant-speed model the gap workflow fits (16 N, 100 V, 1.5 kHz); the residuals include its inertia. For a heavy characterisation sled use --params host-sim/params/heavy-slider.toml",
+                    params.slider.mass_kg,
+                    100.0 * off
+                );
+            }
+        }
         Command::Measure(args) => host_sim::gap::measure::run(args.into(), &params)?,
         Command::Characterize(args) => host_sim::virtual_controller::characterize::run(&args.into())?,
         Command::Sweep { json } => {
