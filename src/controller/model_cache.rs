@@ -155,8 +155,10 @@ fn thrust_at_zero_speed(row: &[f32; PHASE_POINTS]) -> f32 {
 
 impl ModelTable {
     /// The expensive part: [`VOLT_POINTS`] model points, the thrust at every grid node and
-    /// [`LOAD_POINTS`] speed roots (a few hundred thousand instructions on the Cortex-M4, for a
-    /// lower-priority context).
+    /// [`LOAD_POINTS`] speed roots or, for a carriage whose speed ripples, periodic orbits (a few
+    /// hundred thousand instructions on the Cortex-M4; 1.35 million measured in PIL for the 1 kg
+    /// default; more for a carriage that rides the foot, whose whole grid comes from orbits), for
+    /// a lower-priority context.
     pub fn build(request: &ModelRequest) -> Self {
         let top = request.max_drive_v.max(0.0);
         let preload = fx_from_f32(request.preload_n);
