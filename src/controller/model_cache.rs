@@ -163,17 +163,6 @@ impl ModelTable {
         let top = request.max_drive_v.max(0.0);
         let preload = fx_from_f32(request.preload_n);
         let step_v = top / (VOLT_POINTS - 1) as f32;
-        let mut thrust_n = [[0.0f32; PHASE_POINTS]; VOLT_POINTS];
-        let mut largest = 0.0f32;
-        for (j, row) in thrust_n.iter_mut().enumerate() {
-            let volts = if j == 0 { ROW0_SHARE * step_v } else { step_v * j as f32 };
-            let point = request.per_volt.point(preload, fx_from_f32(volts));
-            for (k, t) in row.iter_mut().enumerate() {
-                let phi = Fx::PI * k as i32 / (PHASE_POINTS - 1) as i32;
-                *t = point.thrust_n(point.foot_speed_mm_s.saturating_mul(cos(phi))).to_num();
-                largest = largest.max(t.abs());
-            }
-        }
         // A light carriage: its full-drive speed from its periodic motion, and where that is far
         // below the constant-speed model's, the whole grid from it too (see `RIDING_SHARE`).
         let full = request.per_volt.point(preload, fx_from_f32(top));
@@ -182,16 +171,22 @@ impl ModelTable {
         let constant_v0: f32 = full.no_load_speed_mm_s().to_num();
         let riding =
             light && full_orbits.mean_speed_mm_s(0.0).is_some_and(|v0| v0 < RIDING_SHARE * constant_v0);
-        if riding {
-            for (j, row) in thrust_n.iter_mut().enumerate() {
-                let volts = if j == 0 { ROW0_SHARE * step_v } else { step_v * j as f32 };
-                let point = request.per_volt.point(preload, fx_from_f32(volts));
+        let mut thrust_n = [[0.0f32; PHASE_POINTS]; VOLT_POINTS];
+        let mut largest = 0.0f32;
+        for (j, row) in thrust_n.iter_mut().enumerate() {
+            let volts = if j == 0 { ROW0_SHARE * step_v } else { step_v * j as f32 };
+            let point = request.per_volt.point(preload, fx_from_f32(volts));
+            for (k, t) in row.iter_mut().enumerate() {
+                let phi = Fx::PI * k as i32 / (PHASE_POINTS - 1) as i32;
+                *t = point.thrust_n(point.foot_speed_mm_s.saturating_mul(cos(phi))).to_num();
+            }
+            if riding {
                 let orbits = Orbits::new(&point, request.frequency_hz, request.moving_mass_kg);
                 if orbits.inertia_matters() {
                     with_inertia(row, &orbits, point.foot_speed_mm_s.to_num());
                 }
             }
-            largest = thrust_n.iter().flatten().fold(0.0f32, |a, &t| a.max(t.abs()));
+            largest = row.iter().fold(largest, |a, &t| a.max(t.abs()));
         }
         let thrust_scale_n = if largest > 0.0 { largest / 32_767.0 } else { 1.0 };
         let thrust_q = thrust_n.map(|row| {
