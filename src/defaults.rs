@@ -133,6 +133,11 @@ pub fn with_defaults(hw: &Hardware, unset: Unset) -> ControllerConfig {
         reference_drive_v: f,
         reference_timeout_s: f,
         moving_mass_kg: f,
+        mu_dynamic: f,
+        tangential_scale: f,
+        normal_force_ratio: f,
+        rail_coulomb_n: f,
+        rail_viscous_n_s_per_m: f,
     };
     crate::settings::apply_fixed_defaults(&mut cfg);
     // The settings whose default is `hardware(..)` in the table.
@@ -142,5 +147,8 @@ pub fn with_defaults(hw: &Hardware, unset: Unset) -> ControllerConfig {
     cfg.preload.max_valid_word = hw.force_cell_max_word;
     cfg.preload_max_n = full_contact_preload_n(&cfg);
     cfg.moving_mass_kg = hw.motor.moving_mass_kg.to_num();
+    cfg.mu_dynamic = hw.motor.mu.to_num();
+    cfg.tangential_scale = hw.motor.tangential_scale.to_num();
+    cfg.normal_force_ratio = hw.motor.normal_force_ratio.to_num();
     cfg
 }

@@ -29,6 +29,12 @@ pub struct MotorConstants {
     pub fine_nm_per_v: Fx,
     /// Moving mass (kg).
     pub moving_mass_kg: Fx,
+    /// The stator's normal force ratio ρ (eq. 3) and tangential scale λ (eq. 1) the table was
+    /// computed with: `kc·Yc` is proportional to ρ and `ω·Xc` (and the fine stroke) to λ, so a
+    /// motor calibrated to other values scales the table by their ratios
+    /// ([`crate::controller::ControllerConfig::per_volt`]).
+    pub normal_force_ratio: Fx,
+    pub tangential_scale: Fx,
 }
 
 /// Mean contact force over a period per unit `kc·Yc`, g(θ) = (2 sin(θ/2) − θ cos(θ/2))/2π, on

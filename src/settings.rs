@@ -430,6 +430,21 @@ settings! {
     (0x101A, "Motor", moving_mass_kg: f32 = hardware("the motor table's moving mass");
         "kg", 1.0, Range::Float { lo: 1e-3, hi: 1e3, lo_open: false }, Stored,
         "Moving mass of the carriage and payload"),
+    // The motor as calibrated (`host-sim calibrate` uploads the model-gap workflow's fit);
+    // appended after the moving mass: a version-3 record is this record without them.
+    (0x101B, "Motor", mu_dynamic: f32 = hardware("the motor table's friction coefficient");
+        "", 1.0, Range::Float { lo: 0.0, hi: 2.0, lo_open: true }, Stored,
+        "Sliding friction coefficient of the drive foot"),
+    (0x101C, "Motor", tangential_scale: f32 = hardware("the motor table's tangential scale");
+        "", 1.0, POSITIVE, Stored, "Tangential scale of the stator (within 4x of the table's)"),
+    (0x101D, "Motor", normal_force_ratio: f32 = hardware("the motor table's normal force ratio");
+        "", 1.0, POSITIVE, Stored, "Normal force ratio of the stator (within 4x of the table's)"),
+    (0x101E, "Motor", rail_coulomb_n: f32 = 0.0;
+        "N", 1.0, Range::Float { lo: 0.0, hi: 100.0, lo_open: false }, Stored,
+        "Guide Coulomb friction of the carriage"),
+    (0x101F, "Motor", rail_viscous_n_s_per_m: f32 = 0.0;
+        "N per m/s", 1.0, Range::Float { lo: 0.0, hi: 10_000.0, lo_open: false }, Stored,
+        "Guide viscous friction of the carriage"),
     (0x1020, "Hardware", encoder_nm_per_count: u32 = hardware("the encoder's resolution");
         "nm per count", 1.0, Range::Int { lo: 1, hi: 1_000_000 }, ReadOnly, "Encoder resolution"),
     (0x1021, "Hardware", loop_hz: u32 = hardware("the DAC rate over 20 samples per period");

@@ -527,6 +527,41 @@ fn parameters_spa_hpa_wpa() {
     assert!(all.starts_with("1 0x1=60 \n1 0x2=0.001 \n"), "{all}");
 }
 
+/// The calibrated motor (issue 13): μ, λ, ρ default to the motor table's (Q16 values); λ and ρ
+/// are checked against the table as a whole line, so a line that would make another motor of
+/// it changes nothing.
+#[test]
+fn calibrated_motor_parameters_default_to_the_table_and_are_checked_as_a_whole() {
+    let mut rig = Rig::new();
+    let m = piezo_drive::motor_table::PROTOTYPE_MOTOR;
+    let shown = |x: piezo_drive::Fx| format!("{}", x.to_num::<f32>());
+    let want = format!(
+        "1 0x101B={} \n1 0x101C={} \n1 0x101D={} \n1 0x101E=0 \n1 0x101F=0\n",
+        shown(m.mu),
+        shown(m.tangential_scale),
+        shown(m.normal_force_ratio)
+    );
+    rig.transcript(&[(b"SPA? 1 0x101B 1 0x101C 1 0x101D 1 0x101E 1 0x101F\n", want.as_bytes())]);
+    rig.transcript(&[
+        // Within 4× of the table's λ = 0.2 and ρ = 0.515: taken together.
+        (b"SPA 1 0x101B 0.28 1 0x101C 0.19 1 0x101D 0.6 1 0x101E 0.4\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (
+            b"SPA? 1 0x101B 1 0x101C 1 0x101D 1 0x101E\n",
+            b"1 0x101B=0.28 \n1 0x101C=0.19 \n1 0x101D=0.6 \n1 0x101E=0.4\n",
+        ),
+        // λ 4.5× the table's in the same line as a good ρ: neither is taken.
+        (b"SPA 1 0x101D 0.5 1 0x101C 0.9\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"SPA? 1 0x101C 1 0x101D\n", b"1 0x101C=0.19 \n1 0x101D=0.6\n"),
+        // Each row's own range: μ in (0, 2], guide friction not negative.
+        (b"SPA 1 0x101B 0\n", b""),
+        (b"ERR?\n", b"17\n"),
+        (b"SPA 1 0x101E -0.1\n", b""),
+        (b"ERR?\n", b"17\n"),
+    ]);
+}
+
 #[test]
 fn hpa_lists_id_type_and_description_as_pipython_parses_them() {
     let text = String::from_utf8(Rig::new().send(b"HPA?\n")).unwrap();

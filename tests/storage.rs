@@ -192,6 +192,11 @@ fn changed() -> piezo_drive::controller::ControllerConfig {
     c.reference_drive_v = 40.0;
     c.reference_timeout_s = 100.0;
     c.moving_mass_kg = 0.45;
+    c.mu_dynamic = 0.28;
+    c.tangential_scale = 0.19;
+    c.normal_force_ratio = 0.6;
+    c.rail_coulomb_n = 0.4;
+    c.rail_viscous_n_s_per_m = 2.5;
     c
 }
 
@@ -290,11 +295,12 @@ fn record(version: u16, values: &[V]) -> Vec<u8> {
     rec
 }
 
-/// The version-3 layout, written out by hand: every stored setting in table order, in its
-/// type's width. A change here is a new format version. Version 2 was the same without the
-/// moving mass at the end; such a record still loads, the mass from the defaults.
+/// The version-4 layout, written out by hand: every stored setting in table order, in its
+/// type's width. A change here is a new format version. Version 3 was the same without the
+/// calibrated motor at the end, version 2 also without the moving mass; such records still
+/// load, what they lack from the defaults.
 #[test]
-fn version_3_record_byte_for_byte_and_version_2_still_loads() {
+fn version_4_record_byte_for_byte_and_versions_3_and_2_still_load() {
     use V::*;
     let v2_fields = [
         F(55.5),       // 0x1 kp
@@ -334,18 +340,34 @@ fn version_3_record_byte_for_byte_and_version_2_still_loads() {
     ];
     let mut v3_fields = v2_fields.to_vec();
     v3_fields.push(F(0.45)); // 0x101A moving mass (kg)
-    let expected = record(3, &v3_fields);
-    assert_eq!(VERSION, 3);
-    assert_eq!(PAYLOAD_LEN, 144);
-    assert_eq!(RECORD_LEN, 156);
+    let mut v4_fields = v3_fields.clone();
+    v4_fields.extend([
+        F(0.28), // 0x101B friction coefficient
+        F(0.19), // 0x101C tangential scale
+        F(0.6),  // 0x101D normal force ratio
+        F(0.4),  // 0x101E guide Coulomb friction (N)
+        F(2.5),  // 0x101F guide viscous friction (N per m/s)
+    ]);
+    let expected = record(4, &v4_fields);
+    assert_eq!(VERSION, 4);
+    assert_eq!(PAYLOAD_LEN, 164);
+    assert_eq!(RECORD_LEN, 176);
     assert_eq!(storage::encode(&changed()).to_vec(), expected);
     assert_eq!(storage::decode(&expected, &controller_config()), Ok(changed()));
-    // Version 2: everything but the mass, which comes from the defaults.
+    // Version 3: everything but the calibrated motor, which comes from the defaults.
+    let d = controller_config();
+    let v3 = record(3, &v3_fields);
+    assert_eq!(v3.len(), 8 + 144 + 4);
+    let mut want = changed();
+    (want.mu_dynamic, want.tangential_scale, want.normal_force_ratio) =
+        (d.mu_dynamic, d.tangential_scale, d.normal_force_ratio);
+    (want.rail_coulomb_n, want.rail_viscous_n_s_per_m) = (d.rail_coulomb_n, d.rail_viscous_n_s_per_m);
+    assert_eq!(storage::decode(&v3, &d), Ok(want));
+    // Version 2: also the mass from the defaults.
     let v2 = record(2, &v2_fields);
     assert_eq!(v2.len(), 8 + 140 + 4);
-    let mut want = changed();
-    want.moving_mass_kg = controller_config().moving_mass_kg;
-    assert_eq!(storage::decode(&v2, &controller_config()), Ok(want));
+    want.moving_mass_kg = d.moving_mass_kg;
+    assert_eq!(storage::decode(&v2, &d), Ok(want));
 }
 
 /// A record written by the firmware before the settings table (version 1, 119 payload bytes)
@@ -400,6 +422,9 @@ fn version_1_record_still_loads() {
     expected.reference_drive_v = d.reference_drive_v;
     expected.reference_timeout_s = d.reference_timeout_s;
     expected.moving_mass_kg = d.moving_mass_kg;
+    (expected.mu_dynamic, expected.tangential_scale, expected.normal_force_ratio) =
+        (d.mu_dynamic, d.tangential_scale, d.normal_force_ratio);
+    (expected.rail_coulomb_n, expected.rail_viscous_n_s_per_m) = (d.rail_coulomb_n, d.rail_viscous_n_s_per_m);
     assert_eq!(storage::decode(&v1, &d), Ok(expected));
     // As read from a flash page (erased bytes after it).
     let mut page = vec![0xFFu8; 2048];

@@ -128,6 +128,8 @@ fn model_table_within_1_percent_of_stall_of_the_f64_model() {
                 // Heavy enough for the constant-speed model (no orbits): the interpolation
                 // is what this test measures.
                 moving_mass_kg: 50.0,
+                rail_coulomb_n: 0.0,
+                rail_viscous_n_s_per_m: 0.0,
                 generation: 0,
             };
             let table = ModelTable::build(&request);
@@ -250,4 +252,82 @@ fn core_orbit_model_follows_the_f64_inertial_model() {
     }
     assert_eq!(points, 96);
     eprintln!("worst core orbit error: {:.2} % of the foot's peak speed", 100.0 * worst);
+}
+
+/// The calibrated motor (issue 13: μ, λ, ρ and the guide's friction uploaded with `SPA`) against
+/// the f64 model of the same motor written as a parameter file: the table scaled by the ratios,
+/// with the guide friction taken off, agrees with `EffectModel` (rail friction as a resisting
+/// force in the speed balance, the other values in the file) as the plain table does.
+#[test]
+fn calibrated_table_with_guide_friction_matches_the_f64_model_of_that_motor() {
+    use host_sim::harness::sil::controller_config;
+    use host_sim::motor::effects::{model_speed_m_s, Condition};
+    use piezo_drive::controller::model_cache::ModelTable;
+    use piezo_drive::controller::Controller;
+    let base = Params::heavy_slider();
+    // The fitted motor: μ 20 % lower, λ 5 % lower, ρ 10 % higher, 0.4 N + 30 N·s/m in the guide.
+    let mut truth = base.clone();
+    truth.friction.mu_dynamic *= 0.8;
+    truth.stator.tangential_scale *= 0.95;
+    truth.stator.normal_force_ratio *= 1.1;
+    truth.effects.set("rail_coulomb_n", 0.4).unwrap();
+    truth.effects.set("rail_viscous_n_s_per_m", 30.0).unwrap();
+    let mut cfg = controller_config(&base);
+    cfg.mu_dynamic = truth.friction.mu_dynamic as f32;
+    cfg.tangential_scale = truth.stator.tangential_scale as f32;
+    cfg.normal_force_ratio = truth.stator.normal_force_ratio as f32;
+    (cfg.rail_coulomb_n, cfg.rail_viscous_n_s_per_m) = (0.4, 30.0);
+    let mut c = Controller::new(cfg).expect("the calibration is accepted");
+    // A 16 N reading of the force cell (zero word 0).
+    let word = (16.0 / cfg.preload.newton_per_word).round() as u16;
+    c.step(&piezo_drive::controller::Inputs { preload_word: word, ..Default::default() });
+    let request = c.model_request().expect("a table is wanted");
+    assert_eq!((request.rail_coulomb_n, request.rail_viscous_n_s_per_m), (0.4, 30.0));
+    let table = ModelTable::build(&request);
+    let cond = |load_n: f64| Condition {
+        preload_n: f64::from(request.preload_n),
+        voltage_v: 100.0,
+        frequency_hz: f64::from(cfg.drive_freq_hz),
+        load_n,
+        direction: 1,
+    };
+    // Stall: the load at which the f64 model's speed reaches zero, by bisection.
+    let (mut lo, mut hi) = (0.0f64, 20.0f64);
+    for _ in 0..50 {
+        let mid = 0.5 * (lo + hi);
+        if model_speed_m_s(&truth, &cond(mid)) > 0.0 {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let stall = lo;
+    let plain_stall = f64::from(
+        ModelTable::build(&{
+            let mut r = request;
+            (r.rail_coulomb_n, r.rail_viscous_n_s_per_m) = (0.0, 0.0);
+            r
+        })
+        .stall_n(),
+    );
+    // The guide's 0.4 N is off the stall exactly (at standstill its viscous part is nil).
+    assert!(
+        (plain_stall - f64::from(table.stall_n()) - 0.4).abs() < 1e-3,
+        "{plain_stall} vs {}",
+        table.stall_n()
+    );
+    assert!(
+        (f64::from(table.stall_n()) - stall).abs() < 0.01 * stall,
+        "stall {} vs f64 {stall}",
+        table.stall_n()
+    );
+    // Speeds within 1.5 % of the no-load speed: the speed column is interpolated between 17
+    // loads, as in the plain table (1 % of the stall force as a thrust error there).
+    let no_load = model_speed_m_s(&truth, &cond(0.0)) * 1e3;
+    for share in [0.0, 0.2, 0.5, 0.8, 0.95] {
+        let load = share * stall;
+        let want = model_speed_m_s(&truth, &cond(load)) * 1e3;
+        let got = f64::from(table.speed_at_load_mm_s(load as f32));
+        assert!((got - want).abs() < 0.015 * no_load, "load {load:.3} N: table {got:.4} mm/s, f64 {want:.4}");
+    }
 }

@@ -55,6 +55,11 @@ const SET: &[(&str, &str, &str)] = &[
     ("0x1018", "40", "40"),
     ("0x1019", "100", "100"),
     ("0x101A", "0.45", "0.45"),
+    ("0x101B", "0.28", "0.28"),
+    ("0x101C", "0.19", "0.19"),
+    ("0x101D", "0.6", "0.6"),
+    ("0x101E", "0.4", "0.4"),
+    ("0x101F", "2.5", "2.5"),
 ];
 
 /// The read-only parameters (hardware facts, not stored) at the simulated board's values:
@@ -120,6 +125,8 @@ fn wpa_then_restart_brings_back_every_stored_parameter_and_nothing_else() {
     (c.preload.min_valid_word, c.preload.max_valid_word, c.preload.filter_alpha) = (3, 4000, 0.05);
     (c.reference_signal, c.reference_position_nm) = (ReferenceSignal::NegativeLimit, -1_000_000);
     (c.reference_drive_v, c.reference_timeout_s, c.moving_mass_kg) = (40.0, 100.0, 0.45);
+    (c.mu_dynamic, c.tangential_scale, c.normal_force_ratio) = (0.28, 0.19, 0.6);
+    (c.rail_coulomb_n, c.rail_viscous_n_s_per_m) = (0.4, 2.5);
     let record = std::fs::read(&store).expect("WPA wrote the store");
     assert_eq!(record, piezo_drive::storage::encode(&expected).to_vec());
 

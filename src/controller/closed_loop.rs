@@ -54,10 +54,10 @@ impl Controller {
             self.on_target_s = 0.0;
         }
 
-        let fine_room_nm = self.fine_room_v() * self.cfg.motor.fine_nm_per_v.to_num::<f32>();
+        let fine_room_nm = self.fine_room_v() * self.model.fine_nm_per_v;
         match self.mode {
             Mode::Coarse => {
-                let nm_per_v = self.cfg.motor.fine_nm_per_v.to_num::<f32>().max(1e-3);
+                let nm_per_v = self.model.fine_nm_per_v.max(1e-3);
                 let fits = (self.fine_offset_v + to_target / nm_per_v).abs() < 0.9 * self.fine_room_v();
                 if self.profile.done()
                     && fits

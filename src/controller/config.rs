@@ -2,9 +2,11 @@
 //! id, unit, range, default and storage are declared once, in [`crate::settings::SETTINGS`].
 
 use super::{CommandError, ReferenceSignal};
+use crate::fastmath::fx_from_f32;
 use crate::generator::DacConfig;
-use crate::model::MotorConstants;
+use crate::model::{MotorConstants, PerVolt};
 use crate::sensors::PreloadCalibration;
+use crate::Fx;
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ControllerConfig {
@@ -63,6 +65,59 @@ pub struct ControllerConfig {
     /// Moving mass of the carriage and its payload (kg): braking, speeding up and the load
     /// observer's inertia term, and the model table's periodic motion (`crate::inertia`).
     pub moving_mass_kg: f32,
+    /// The motor as calibrated (the model-gap workflow's fitted values, uploaded with `SPA`): the
+    /// sliding friction coefficient μd, the stator's tangential scale λ (eq. 1) and normal force
+    /// ratio ρ (eq. 3). The motor table was computed for its own λ and ρ
+    /// ([`MotorConstants::tangential_scale`]) and is scaled by the ratios ([`Self::per_volt`]).
+    pub mu_dynamic: f32,
+    pub tangential_scale: f32,
+    pub normal_force_ratio: f32,
+    /// Guide friction of the carriage (the `rail_friction` effect): Coulomb and viscous, opposing
+    /// the slider's motion. The model table takes it off the foot's thrust.
+    pub rail_coulomb_n: f32,
+    pub rail_viscous_n_s_per_m: f32,
+}
+
+/// How far a calibrated λ or ρ may stray from the motor table's: a factor of 4 either way. Beyond
+/// that it is another motor, whose table must be regenerated, not scaled.
+pub const CALIBRATION_RATIO_MAX: f32 = 4.0;
+
+impl ControllerConfig {
+    /// Calibrated over table λ and ρ: (tangential, normal); 1 when the table has none.
+    pub fn calibration_ratios(&self) -> (f32, f32) {
+        let ratio = |x: f32, table: Fx| {
+            let t: f32 = table.to_num();
+            if t > 0.0 {
+                x / t
+            } else {
+                1.0
+            }
+        };
+        (
+            ratio(self.tangential_scale, self.motor.tangential_scale),
+            ratio(self.normal_force_ratio, self.motor.normal_force_ratio),
+        )
+    }
+
+    /// The per-volt amplitudes at the drive frequency for the calibrated motor: the table's,
+    /// `kc·Yc` scaled by the ρ ratio, `ω·Xc` by the λ ratio (both linear, eqs. 1, 3 and 7; the
+    /// table's interpolation commutes with the scaling), μ the calibrated one.
+    pub fn per_volt(&self) -> PerVolt {
+        let (tangential, normal) = self.calibration_ratios();
+        let p = self.motor.at_frequency(fx_from_f32(self.drive_freq_hz / 1000.0));
+        let scale = |x: Fx, r: f32| fx_from_f32(x.to_num::<f32>() * r);
+        PerVolt {
+            kc_yc_n_per_v: scale(p.kc_yc_n_per_v, normal),
+            foot_speed_mm_s_per_v: scale(p.foot_speed_mm_s_per_v, tangential),
+            mu: fx_from_f32(self.mu_dynamic),
+            viscous_un_per_mm_s: p.viscous_un_per_mm_s,
+        }
+    }
+
+    /// Static foot displacement per volt of common offset (nm/V), for the calibrated λ.
+    pub fn fine_nm_per_v(&self) -> f32 {
+        self.motor.fine_nm_per_v.to_num::<f32>() * self.calibration_ratios().0
+    }
 }
 
 /// Largest travel limit either way (1 m): positions stay far from i64 and f32 trouble.
@@ -82,6 +137,7 @@ pub fn validate_settings(c: &ControllerConfig) -> Result<(), CommandError> {
         && c.reference_drive_v <= c.max_drive_v
         && c.preload_min_n < c.preload_max_n
         && c.travel_min_nm < c.travel_max_nm
+        && calibration_fits_table(c)
         && p.newton_per_word != 0.0
         && p.min_valid_word < p.max_valid_word;
     if ok {
@@ -89,4 +145,11 @@ pub fn validate_settings(c: &ControllerConfig) -> Result<(), CommandError> {
     } else {
         Err(CommandError::InvalidValue)
     }
+}
+
+/// The calibration as a whole: λ and ρ within [`CALIBRATION_RATIO_MAX`] of the table's.
+fn calibration_fits_table(c: &ControllerConfig) -> bool {
+    let (t, n) = c.calibration_ratios();
+    let lo = 1.0 / CALIBRATION_RATIO_MAX;
+    (lo..=CALIBRATION_RATIO_MAX).contains(&t) && (lo..=CALIBRATION_RATIO_MAX).contains(&n)
 }

@@ -41,7 +41,7 @@ impl Controller {
     /// carried out and seen by the encoder (step and settle).
     pub(super) fn fine(&mut self, err_nm: f32) {
         let Mode::Fine(mut f) = self.mode else { return };
-        let nm_per_v = self.cfg.motor.fine_nm_per_v.to_num::<f32>().max(1e-3);
+        let nm_per_v = self.model.fine_nm_per_v.max(1e-3);
         let room = self.fine_room_v();
         let at_rest = f.rate_v_s == 0.0 && (f.cmd_v - self.fine_offset_v).abs() < 1e-3;
         let counts = self.encoder.map_or(0, |e| e.counts());
@@ -79,7 +79,7 @@ impl Controller {
         }
         // Trapezoid toward the commanded offset.
         let mass = self.cfg.moving_mass_kg.max(1e-3);
-        let grip_n = self.preload.force_n().max(0.0) * self.cfg.motor.mu.to_num::<f32>();
+        let grip_n = self.preload.force_n().max(0.0) * self.cfg.mu_dynamic;
         let accel_v_s2 = (0.25 * grip_n / mass / (nm_per_v * 1e-9)).max(1.0);
         let rate_max_v_s: f32 = 20_000.0;
         let d = f.cmd_v - self.fine_offset_v;

@@ -58,6 +58,10 @@ pub struct ModelRequest {
     /// ([`crate::inertia`]).
     pub frequency_hz: f32,
     pub moving_mass_kg: f32,
+    /// Guide friction of the carriage, opposing its motion (Coulomb N, viscous N·s/m): the table
+    /// holds the foot's thrust net of it.
+    pub rail_coulomb_n: f32,
+    pub rail_viscous_n_s_per_m: f32,
     /// The controller configuration this request belongs to (bumped by every accepted
     /// `set_config`): a table built for an older one is refused.
     pub generation: u32,
@@ -148,6 +152,38 @@ fn load_at_speed(pairs: &[(f32, f32)], v: f32) -> f32 {
     }
 }
 
+/// Guide friction at a slider speed along the drive (N): Coulomb opposing the motion (and the
+/// start of motion at standstill, so the stall force is net of it) plus viscous.
+fn guide_friction_n(request: &ModelRequest, speed_mm_s: f32) -> f32 {
+    let coulomb = if speed_mm_s < -1e-6 { -request.rail_coulomb_n } else { request.rail_coulomb_n };
+    coulomb + request.rail_viscous_n_s_per_m * speed_mm_s * 1e-3
+}
+
+/// Takes the guide friction off a row of foot thrusts (at the grid's φp columns).
+fn less_guide_friction(row: &mut [f32; PHASE_POINTS], request: &ModelRequest, foot_mm_s: f32) {
+    if request.rail_coulomb_n == 0.0 && request.rail_viscous_n_s_per_m == 0.0 {
+        return;
+    }
+    for (k, t) in row.iter_mut().enumerate() {
+        let phi = Fx::PI * k as i32 / (PHASE_POINTS - 1) as i32;
+        *t -= guide_friction_n(request, foot_mm_s * cos(phi).to_num::<f32>());
+    }
+}
+
+/// The speed at which the foot's thrust balances `load_n` plus the guide friction, from
+/// `speed_at_foot_load` (the speed against a load on the foot alone): the viscous part depends
+/// on the speed, so three passes (its share of the thrust is small; each pass shrinks the
+/// error by that share).
+fn with_guide_friction(request: &ModelRequest, load_n: f32, speed_at_foot_load: impl Fn(f32) -> f32) -> f32 {
+    let mut v = speed_at_foot_load(load_n + request.rail_coulomb_n);
+    if request.rail_viscous_n_s_per_m != 0.0 {
+        for _ in 0..3 {
+            v = speed_at_foot_load(load_n + guide_friction_n(request, v.max(0.0)));
+        }
+    }
+    v
+}
+
 /// Thrust of a row at zero slider speed: the φp = π/2 column.
 fn thrust_at_zero_speed(row: &[f32; PHASE_POINTS]) -> f32 {
     row.get((PHASE_POINTS - 1) / 2).copied().unwrap_or(0.0)
@@ -186,6 +222,7 @@ impl ModelTable {
                     with_inertia(row, &orbits, point.foot_speed_mm_s.to_num());
                 }
             }
+            less_guide_friction(row, request, point.foot_speed_mm_s.to_num());
             largest = row.iter().fold(largest, |a, &t| a.max(t.abs()));
         }
         let thrust_scale_n = if largest > 0.0 { largest / 32_767.0 } else { 1.0 };
@@ -204,14 +241,18 @@ impl ModelTable {
             stall_n = thrust_at_zero_speed(&top_row).max(0.0);
             for (k, s) in speed_mm_s.iter_mut().enumerate() {
                 let load = stall_n * k as f32 / (LOAD_POINTS - 1) as f32;
-                *s = full_orbits.mean_speed_mm_s(load).unwrap_or(0.0).max(0.0);
+                *s = with_guide_friction(request, load, |foot_load| {
+                    full_orbits.mean_speed_mm_s(foot_load).unwrap_or(0.0).max(0.0)
+                });
             }
         } else {
-            stall_n = full.stall_force_n().to_num();
+            stall_n = (full.stall_force_n().to_num::<f32>() - request.rail_coulomb_n).max(0.0);
             let mut hint = f32::NAN;
             for (k, s) in speed_mm_s.iter_mut().enumerate() {
                 let load = stall_n * k as f32 / (LOAD_POINTS - 1) as f32;
-                *s = full.speed_at_load_near(fx_from_f32(load), hint).to_num();
+                *s = with_guide_friction(request, load, |foot_load| {
+                    full.speed_at_load_near(fx_from_f32(foot_load), hint).to_num()
+                });
                 hint = *s;
             }
         }
@@ -374,6 +415,8 @@ impl ModelTable {
 #[derive(Debug, Clone, Copy)]
 pub(super) struct ModelSlot {
     pub(super) per_volt: PerVolt,
+    /// Static foot displacement per volt of common offset (nm/V), calibrated.
+    pub(super) fine_nm_per_v: f32,
     /// Counts accepted configurations: a table built for an older one is refused.
     pub(super) generation: u32,
     pub(super) table: Option<ModelTable>,
@@ -381,17 +424,14 @@ pub(super) struct ModelSlot {
 
 impl ModelSlot {
     pub(super) fn new(cfg: &ControllerConfig, generation: u32) -> Self {
-        ModelSlot {
-            per_volt: cfg.motor.at_frequency(fx_from_f32(cfg.drive_freq_hz / 1000.0)),
-            generation,
-            table: None,
-        }
+        ModelSlot { per_volt: cfg.per_volt(), fine_nm_per_v: cfg.fine_nm_per_v(), generation, table: None }
     }
 
     /// New settings: the table they need is asked for anew, the old one dropped. In place,
     /// because a whole slot moved by value copies the table's kilobytes under the tick lock.
     pub(super) fn reconfigure(&mut self, cfg: &ControllerConfig) {
-        self.per_volt = cfg.motor.at_frequency(fx_from_f32(cfg.drive_freq_hz / 1000.0));
+        self.per_volt = cfg.per_volt();
+        self.fine_nm_per_v = cfg.fine_nm_per_v();
         self.generation = self.generation.wrapping_add(1);
         self.table = None;
     }
@@ -406,7 +446,10 @@ impl Controller {
             return Some((t.stall_n(), t.no_load_mm_s()));
         }
         let p = self.model.per_volt.point(fx_from_f32(preload), fx_from_f32(self.cfg.max_drive_v));
-        Some((p.stall_force_n().to_num(), p.no_load_speed_mm_s().to_num()))
+        // Net of the guide's Coulomb friction (the table's viscous refinement is left out here).
+        let guide = fx_from_f32(self.cfg.rail_coulomb_n);
+        let stall = (p.stall_force_n() - guide).max(Fx::ZERO);
+        Some((stall.to_num(), p.speed_at_load_mm_s(guide).to_num()))
     }
 
     /// The installed table, if it was built for this preload (within [`PRELOAD_RESOLVE_N`]).
@@ -433,6 +476,8 @@ impl Controller {
             max_drive_v: self.cfg.max_drive_v,
             frequency_hz: self.cfg.drive_freq_hz,
             moving_mass_kg: self.cfg.moving_mass_kg,
+            rail_coulomb_n: self.cfg.rail_coulomb_n,
+            rail_viscous_n_s_per_m: self.cfg.rail_viscous_n_s_per_m,
             generation: self.model.generation,
         })
     }
@@ -445,7 +490,9 @@ impl Controller {
             && r.per_volt == self.model.per_volt
             && r.max_drive_v == self.cfg.max_drive_v
             && r.frequency_hz == self.cfg.drive_freq_hz
-            && r.moving_mass_kg == self.cfg.moving_mass_kg;
+            && r.moving_mass_kg == self.cfg.moving_mass_kg
+            && r.rail_coulomb_n == self.cfg.rail_coulomb_n
+            && r.rail_viscous_n_s_per_m == self.cfg.rail_viscous_n_s_per_m;
         if current {
             self.model.table = Some(table);
         }

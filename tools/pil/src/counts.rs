@@ -174,6 +174,8 @@ pub fn hot_paths() {
         max_drive_v: 100.0,
         frequency_hz: 2200.0,
         moving_mass_kg: 1.0,
+        rail_coulomb_n: 0.0,
+        rail_viscous_n_s_per_m: 0.0,
         generation: 0,
     };
     let mut build = Stat::new();
