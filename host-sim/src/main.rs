@@ -347,6 +347,8 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Measure(args) => host_sim::gap::measure::run(args.into(), &params)?,
         Command::Characterize(args) => host_sim::virtual_controller::characterize::run(&args.into())?,
+        Command::Calibrate(args) => host_sim::virtual_controller::calibrate::run(&params, &args.into())?,
+        Command::Moves(args) => host_sim::virtual_controller::gcs_moves::run(&args.into())?,
         Command::Sweep { json } => {
             let show = check::show_progress();
             let rows = host_sim::harness::sweep::run(&params, |done, total| {

@@ -19,6 +19,18 @@ impl Controller {
             return Err(CommandError::InvalidValue);
         }
         validate_settings(&cfg)?;
+        // A new motor calibration: what the load observer learned was the old model's error.
+        let c = &self.cfg;
+        let recalibrated = cfg.mu_dynamic != c.mu_dynamic
+            || cfg.tangential_scale != c.tangential_scale
+            || cfg.normal_force_ratio != c.normal_force_ratio
+            || cfg.rail_coulomb_n != c.rail_coulomb_n
+            || cfg.rail_viscous_n_s_per_m != c.rail_viscous_n_s_per_m;
+        if recalibrated {
+            self.observed_bias_n = cfg.expected_load_n;
+            self.integral_n = 0.0;
+            self.thrust_bias_n = cfg.expected_load_n;
+        }
         if cfg.preload != self.cfg.preload {
             // Re-primed by the next sample.
             self.preload = PreloadCell::new(cfg.preload);

@@ -2,9 +2,11 @@
 //! enums; each argument struct here converts into its library counterpart). Used by `main.rs`
 //! only.
 
+pub mod calibrate;
 pub mod characterize;
 pub mod gap;
 pub mod measure;
+pub mod moves;
 pub mod pil;
 pub mod readme_figures;
 pub mod serve;
@@ -141,6 +143,13 @@ pub enum Command {
     /// A board (or `serve`) measures its own thrust–speed points over GCS: open-loop bursts,
     /// written as the gap workflow's CSV.
     Characterize(characterize::CharacterizeArgs),
+    /// Upload a fitted model (`--params params-fitted.toml` from `gap`) to a board or `serve`:
+    /// friction coefficient, tangential scale, normal force ratio and guide friction, in one
+    /// `SPA` line, read back with `SPA?`; effects the firmware does not carry are listed.
+    Calibrate(calibrate::CalibrateArgs),
+    /// Back-and-forth closed-loop moves on a board or `serve` over GCS, each watched by the
+    /// controller's data recorder: peak following error and settle time per move.
+    Moves(moves::MovesArgs),
 }
 
 #[derive(clap::Args)]

@@ -18,6 +18,10 @@ pub struct ServeArgs {
     /// Preload force F0 of the simulated motor (N).
     #[arg(long, default_value_t = 16.0, allow_negative_numbers = true)]
     pub preload_n: f64,
+    /// A weight hanging on the simulated slider, pulling toward −x (N), for `characterize
+    /// --load-n` under load.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub load_n: f64,
     /// Encoder index mark at this slider position of the plant (µm; the slider starts at 0).
     #[arg(long, default_value_t = -20.0, allow_negative_numbers = true)]
     pub index_um: f64,
@@ -31,6 +35,11 @@ pub struct ServeArgs {
     /// Stop after this many seconds (for tests); runs until killed when absent.
     #[arg(long, value_name = "S")]
     pub duration_s: Option<f64>,
+    /// Parameter file the board's firmware was built for (its motor table and defaults, as
+    /// `firmware-table` bakes them); the `--params` file when absent. With another file the plant
+    /// (`--params`) plays a motor whose truth differs from what the firmware believes.
+    #[arg(long, value_name = "FILE")]
+    pub firmware_params: Option<PathBuf>,
 }
 
 impl From<ServeArgs> for serve::ServeArgs {
@@ -40,10 +49,12 @@ impl From<ServeArgs> for serve::ServeArgs {
             pty: a.pty,
             verbose: a.verbose,
             preload_n: a.preload_n,
+            load_n: a.load_n,
             index_um: a.index_um,
             limit_mm: a.limit_mm,
             store: a.store,
             duration_s: a.duration_s,
+            firmware_params: a.firmware_params,
         }
     }
 }

@@ -22,9 +22,36 @@ pub struct Data {
     pub y: Vec<f64>,
     /// Relative weight scale σ_i, m/s.
     pub sigma: Vec<f64>,
-    /// Curve (preload, voltage, frequency, direction) of each row.
+    /// Curve (preload level, voltage, frequency, direction) of each row.
     pub curve: Vec<usize>,
+    /// Preload level of each row: measured preloads within [`PRELOAD_LEVEL_N`] of each other
+    /// are one setting read through a noisy force cell (`characterize` writes each burst's
+    /// reading), so they form one level of the preload condition and one curve.
+    pub preload_level: Vec<usize>,
     pub n_curves: usize,
+}
+
+/// Measured preloads closer than this (N) belong to one preload setting: several times the
+/// force cell's noise (0.05 N on the reference board) and well below the steps anyone sets
+/// between settings.
+pub const PRELOAD_LEVEL_N: f64 = 0.25;
+
+/// Groups the rows' preloads into levels: sorted, a gap over [`PRELOAD_LEVEL_N`] starts a new one.
+fn preload_levels(conds: &[Condition]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..conds.len()).collect();
+    order.sort_by(|&a, &b| conds[a].preload_n.total_cmp(&conds[b].preload_n));
+    let mut level = vec![0usize; conds.len()];
+    let mut current = 0usize;
+    let mut last = f64::NAN;
+    for &i in &order {
+        let f = conds[i].preload_n;
+        if last.is_finite() && f - last > PRELOAD_LEVEL_N {
+            current += 1;
+        }
+        last = f;
+        level[i] = current;
+    }
+    level
 }
 
 impl Data {
@@ -43,12 +70,14 @@ impl Data {
         let mean = y.iter().map(|v| v.abs()).sum::<f64>() / y.len().max(1) as f64;
         let floor = (WEIGHT_FLOOR_OF_MEAN * mean).max(1e-9);
         let sigma = y.iter().map(|v| v.abs() + floor).collect();
+        let preload_level = preload_levels(&conds);
         let mut keys: Vec<[i64; 4]> = Vec::new();
         let curve = conds
             .iter()
-            .map(|c| {
+            .zip(&preload_level)
+            .map(|(c, &level)| {
                 let k = [
-                    (c.preload_n * 1e6).round() as i64,
+                    level as i64,
                     (c.voltage_v * 1e6).round() as i64,
                     (c.frequency_hz * 1e3).round() as i64,
                     i64::from(c.direction),
@@ -62,7 +91,7 @@ impl Data {
                 }
             })
             .collect();
-        Data { conds, y, sigma, curve, n_curves: keys.len() }
+        Data { conds, y, sigma, curve, preload_level, n_curves: keys.len() }
     }
 
     pub fn len(&self) -> usize {

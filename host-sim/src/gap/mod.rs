@@ -236,6 +236,9 @@ pub struct GapReport {
     /// Residual structure by condition (preload, voltage, frequency, load level, direction).
     pub residual_structure: Vec<Structure>,
     pub removed: Vec<Removed>,
+    /// Library effects not tried: the data hold one level of every condition their law acts on
+    /// (e.g. a preload-only law on data at one preload), so the base calibration absorbs them.
+    pub not_identifiable: Vec<String>,
     /// Noise estimate, mm/s at the mean speed (difference-based, base fit).
     pub noise_mm_s: f64,
     /// Residual variance / noise variance of the calibrated base model and of the final model.
@@ -511,7 +514,7 @@ fn structure(data: &Data, resid: &[f64], s: f64) -> Vec<(Axis, usize, f64)> {
     let key = |axis: Axis, i: usize| -> i64 {
         let c = &data.conds[i];
         match axis {
-            Axis::Preload => (c.preload_n * 1e3).round() as i64,
+            Axis::Preload => data.preload_level[i] as i64,
             Axis::Voltage => (c.voltage_v * 1e3).round() as i64,
             Axis::Frequency => (c.frequency_hz * 1e3).round() as i64,
             Axis::Load => load_rank[i],
@@ -621,6 +624,13 @@ pub fn analyze(
     let mut ambiguity = Vec::new();
     let mut removed = Vec::new();
     let library: Vec<Effect> = library.into_iter().filter(|e| !base.effects.is_active(*e)).collect();
+    // Levels of each condition in the data: an effect whose every signature condition has one
+    // level cannot be told from the base calibration there; left out, and said so.
+    let levels = structure(&data, &vec![0.0; data.len()], 1.0);
+    let varied = |axis: Axis| levels.iter().any(|&(a, k, _)| a == axis && k >= 2);
+    let (library, unidentifiable): (Vec<Effect>, Vec<Effect>) =
+        library.into_iter().partition(|e| e.signature().iter().any(|&a| varied(a)));
+    let not_identifiable: Vec<String> = unidentifiable.iter().map(|e| e.to_string()).collect();
     let mut round = 0;
     while state.model.effects.len() < opts.max_effects && state.ratio >= opts.consistent_ratio {
         round += 1;
@@ -751,6 +761,9 @@ pub fn analyze(
     let failing: Vec<Effect> =
         state.model.effects.iter().zip(&signature_tests).filter(|(_, t)| !t.named).map(|(e, _)| *e).collect();
     let mut partial_candidates = Vec::new();
+    // The noise the signature test used: what a partial candidate shows of its structure is
+    // measured against it, so the report says why it was not named.
+    let decision_s = state.s;
     if !failing.is_empty() {
         let full_model = state.model.clone();
         let full_x = state.fit.x.clone();
@@ -768,7 +781,7 @@ pub fn analyze(
             let mut starts = vec![sub_x(&full_model, &full_x, &with)];
             starts.extend(candidate_starts(&fit.x, e, &data));
             let f = lm_fit(&with, &data, &all, &starts, 60);
-            let structure = axis_structure(&data, &f.resid, s, opts.signature_alpha, e.signature());
+            let structure = axis_structure(&data, &f.resid, decision_s, opts.signature_alpha, e.signature());
             let mut above: Vec<&AxisStructure> =
                 structure.iter().filter(|a| !a.consistent_with_noise).collect();
             above.sort_by(|a, b| b.chi2_per_dof.total_cmp(&a.chi2_per_dof));
@@ -835,6 +848,7 @@ pub fn analyze(
         ambiguity,
         residual_structure,
         removed,
+        not_identifiable,
         noise_mm_s: s0 * (1.0 + fit::WEIGHT_FLOOR_OF_MEAN) * mean_mm_s,
         consistency_before: ratio0,
         consistency_after: state.ratio,

@@ -173,6 +173,15 @@ pub fn markdown(r: &GapReport, measured: &Path) -> String {
             fmt_params(c)
         );
     }
+    if !r.not_identifiable.is_empty() {
+        let _ = writeln!(
+            s,
+            "\nNot tried: {}. The data hold one level of every condition their laws act on (their \
+             signatures), where the recalibrated base parameters would absorb them; measure at more \
+             than one level of those conditions to test them.",
+            r.not_identifiable.join(", ")
+        );
+    }
     if !r.removed.is_empty() {
         let _ = writeln!(s, "\nRemoved on re-test:");
         for m in &r.removed {
@@ -320,6 +329,12 @@ pub fn print_summary(r: &GapReport, out: &Path) {
             p.consistency_without,
             p.consistency_with,
             along.join(", ")
+        );
+    }
+    if !r.not_identifiable.is_empty() {
+        println!(
+            "not tried: {} (the data vary none of the conditions their laws act on)",
+            r.not_identifiable.join(", ")
         );
     }
     println!("gap after  {:.4} (residual/noise variance {:.2})", r.gap_after, r.consistency_after);

@@ -193,11 +193,7 @@ pub fn run(args: &CharacterizeOptions) -> Result<()> {
     } else {
         std::fs::write(&args.out, "").with_context(|| format!("cannot write {}", args.out.display()))?;
     }
-    let gcs = match (&args.tcp, &args.serial) {
-        (Some(addr), _) => GcsClient::connect_tcp(addr)?,
-        (None, Some(dev)) => GcsClient::open_serial(dev, args.baud)?,
-        (None, None) => bail!("give --tcp ADDR:PORT or --serial DEV"),
-    };
+    let gcs = GcsClient::open(args.tcp.as_deref(), args.serial.as_deref(), args.baud)?;
     let mut stage = Stage {
         gcs,
         travel_mm: (0.0, 0.0),

@@ -1,6 +1,6 @@
 //! A small PI GCS 2.0 client: the host side of the wire protocol (README, "UART commands"), over
 //! TCP (`host-sim serve --tcp`) or a serial port (a board's ST-LINK virtual COM port, or the pty
-//! of `host-sim serve --pty`). Used by `host-sim characterize` to drive a motor like any client.
+//! of `host-sim serve --pty`). Used by `host-sim characterize` and `host-sim calibrate` to drive a motor like any client.
 
 use anyhow::{anyhow, bail, Context, Result};
 use std::io::{ErrorKind, Read, Write};
@@ -24,6 +24,15 @@ pub struct GcsClient {
 }
 
 impl GcsClient {
+    /// The controller on `tcp` or else `serial` (the commands' `--tcp`/`--serial`).
+    pub fn open(tcp: Option<&str>, serial: Option<&Path>, baud: u32) -> Result<Self> {
+        match (tcp, serial) {
+            (Some(addr), _) => GcsClient::connect_tcp(addr),
+            (None, Some(dev)) => GcsClient::open_serial(dev, baud),
+            (None, None) => bail!("give --tcp ADDR:PORT or --serial DEV"),
+        }
+    }
+
     pub fn connect_tcp(addr: &str) -> Result<Self> {
         let stream = TcpStream::connect(addr).with_context(|| format!("cannot connect to {addr}"))?;
         stream.set_read_timeout(Some(Duration::from_millis(50)))?;
@@ -128,6 +137,15 @@ impl GcsClient {
             .strip_prefix("1=")
             .ok_or_else(|| anyhow!("{}: '{query}' answered '{r}', expected 1=<value>", self.name))?;
         Ok(value.to_string())
+    }
+
+    /// A parameter of axis 1 as a number: `SPA? 1 0x36` → `1 0x36=0.000050`.
+    pub fn param_f64(&mut self, id: u32) -> Result<f64> {
+        let query = format!("SPA? 1 0x{id:X}");
+        let r = self.query(&query)?;
+        r.trim().split_once('=').and_then(|(_, v)| v.trim().parse().ok()).ok_or_else(|| {
+            anyhow!("{}: '{query}' answered '{}', expected 1 0x{id:X}=<number>", self.name, r.trim())
+        })
     }
 
     /// A one-axis numeric query: `POS? 1` → mm.

@@ -5,6 +5,7 @@
 
 use crate::harness::sil::{controller_config, Sil};
 use crate::motor::params::Params;
+use crate::motor::plant::ExternalLoad;
 use anyhow::{bail, Context, Result};
 use piezo_drive::controller::ControllerConfig;
 use piezo_drive::gcs::{Board, Gcs, LoopStats, Pending, Reply};
@@ -28,6 +29,9 @@ pub struct ServeArgs {
     pub verbose: bool,
     /// Preload force F0 of the simulated motor (N).
     pub preload_n: f64,
+    /// A weight hanging on the simulated slider, pulling toward −x (N): what a user hangs on a
+    /// stage to characterise it under load.
+    pub load_n: f64,
     /// Encoder index mark at this slider position of the plant (µm; the slider starts at 0).
     pub index_um: f64,
     /// Limit switches this far beyond the index on either side (mm).
@@ -37,6 +41,10 @@ pub struct ServeArgs {
     pub store: Option<PathBuf>,
     /// Stop after this many seconds (for tests); runs until killed when absent.
     pub duration_s: Option<f64>,
+    /// The parameter file the board's firmware was built for (its motor table and hardware
+    /// defaults, as `host-sim firmware-table` bakes them); the plant's own file when absent.
+    /// Another file here plays a motor whose truth differs from what its firmware believes.
+    pub firmware_params: Option<PathBuf>,
 }
 
 /// The simulated board's side of the protocol.
@@ -151,8 +159,16 @@ impl VirtualController {
             crate::check::output_file("--store", store)?;
         }
         // Parameters stored by an earlier WPA, loaded as the firmware loads them from flash.
-        let cfg = boot_config(p, args.store.as_deref())?;
+        let firmware = match &args.firmware_params {
+            Some(path) => {
+                Params::load(path).with_context(|| format!("--firmware-params {}", path.display()))?
+            }
+            None => p.clone(),
+        };
+        let cfg = boot_config(&firmware, args.store.as_deref())?;
+        crate::check::in_range("--load-n", args.load_n, 0.0, true, 100.0, "N")?;
         let mut sil = Sil::new(p, cfg, args.preload_n, 1)?;
+        sil.set_load(ExternalLoad::opposing(args.load_n, 1));
         let index_m = args.index_um * 1e-6;
         sil.index_position_m = Some(index_m);
         sil.limits_m = Some((index_m - args.limit_mm * 1e-3, index_m + args.limit_mm * 1e-3));
@@ -440,10 +456,12 @@ mod tests {
             pty: false,
             verbose: false,
             preload_n: 16.0,
+            load_n: 0.0,
             index_um: -20.0,
             limit_mm: 55.0,
             store: None,
             duration_s: None,
+            firmware_params: None,
         }
     }
 

@@ -1,0 +1,148 @@
+//! `host-sim calibrate`: upload a fitted motor model (the model-gap workflow's
+//! `params-fitted.toml`) to a board, or to `host-sim serve`, without a rebuild.
+//!
+//! The feedforward's motor table stays the one the firmware was built with; what the workflow
+//! fits goes into the parameters that calibrate it (README, "Parameters"): the friction
+//! coefficient μd, the stator's tangential scale λ and normal force ratio ρ (the table is scaled
+//! by the ratios to its own), and the guide friction of the `rail_friction` effect. They go in
+//! one `SPA` line, so the controller checks them as a whole and takes all or none; then `SPA?`
+//! reads them back. Effects the fixed-point model does not carry are listed as not uploaded.
+
+use crate::motor::effects::Effect;
+use crate::motor::params::Params;
+use crate::virtual_controller::gcs_client::GcsClient;
+use anyhow::{bail, Result};
+use serde::Serialize;
+use std::path::PathBuf;
+
+/// Where to upload and what else to do.
+#[derive(Debug, Clone)]
+pub struct CalibrateOptions {
+    /// The controller's GCS over TCP; one of this and `serial`.
+    pub tcp: Option<String>,
+    /// The controller's GCS over a serial port.
+    pub serial: Option<PathBuf>,
+    pub baud: u32,
+    /// Store the uploaded values in the controller's flash (`WPA`) after the read-back.
+    pub save: bool,
+    /// Print one JSON object instead of the table.
+    pub json: bool,
+}
+
+/// One uploaded parameter.
+#[derive(Debug, Clone, Serialize)]
+pub struct Uploaded {
+    /// GCS parameter id (`SPA 1 <id>`).
+    pub id: u32,
+    /// Its name in the parameter file.
+    pub name: &'static str,
+    pub sent: f32,
+    pub read_back: f32,
+}
+
+/// What `calibrate` did.
+#[derive(Debug, Clone, Serialize)]
+pub struct CalibrateReport {
+    pub uploaded: Vec<Uploaded>,
+    /// Effects in the file that the firmware's fixed-point model does not carry: not uploaded.
+    pub not_uploaded: Vec<String>,
+    /// Whether `WPA` stored them.
+    pub saved: bool,
+}
+
+/// The effects the firmware's model carries (through the parameters below).
+const CARRIED: &[Effect] = &[Effect::RailFriction];
+
+/// The values to upload: (id, parameter-file name, value), in one `SPA` line.
+pub fn calibration_values(p: &Params) -> Vec<(u32, &'static str, f32)> {
+    let rail = p
+        .effects
+        .rail_friction
+        .unwrap_or(crate::motor::effects::RailFriction { rail_coulomb_n: 0.0, rail_viscous_n_s_per_m: 0.0 });
+    // f32 is what the controller keeps; what is sent is what it will read back.
+    vec![
+        (0x101B, "friction.mu_dynamic", p.friction.mu_dynamic as f32),
+        (0x101C, "stator.tangential_scale", p.stator.tangential_scale as f32),
+        (0x101D, "stator.normal_force_ratio", p.stator.normal_force_ratio as f32),
+        // Absent from the file = no guide friction: a calibration before this one is cleared.
+        (0x101E, "rail_friction.rail_coulomb_n", rail.rail_coulomb_n as f32),
+        (0x101F, "rail_friction.rail_viscous_n_s_per_m", rail.rail_viscous_n_s_per_m as f32),
+    ]
+}
+
+/// The file's active effects the firmware cannot take.
+pub fn not_carried(p: &Params) -> Vec<String> {
+    p.effects.active().into_iter().filter(|e| !CARRIED.contains(e)).map(|e| e.name().to_string()).collect()
+}
+
+/// Sends the calibration in one line, reads it back, optionally stores it.
+pub fn upload(gcs: &mut GcsClient, p: &Params, save: bool) -> Result<CalibrateReport> {
+    let values = calibration_values(p);
+    let line = values.iter().fold(String::from("SPA"), |mut s, (id, _, v)| {
+        s.push_str(&format!(" 1 0x{id:X} {v}"));
+        s
+    });
+    gcs.send(&line)?;
+    match gcs.error()? {
+        0 => {}
+        17 => bail!(
+            "the controller refused the calibration (GCS error 17, value out of range): nothing was \
+             changed. μd must be in (0, 2], the guide friction ≥ 0, and λ and ρ within 4× of the \
+             values the board's motor table was computed with; a motor that far off needs its own \
+             table (`host-sim firmware-table`). Sent: {line}"
+        ),
+        e => bail!(
+            "the controller refused the calibration with GCS error {e}: nothing was changed. Sent: {line}"
+        ),
+    }
+    let query = values.iter().fold(String::from("SPA?"), |mut s, (id, _, _)| {
+        s.push_str(&format!(" 1 0x{id:X}"));
+        s
+    });
+    let reply = gcs.query(&query)?;
+    let mut uploaded = Vec::new();
+    for (id, name, sent) in values {
+        let key = format!("1 0x{id:X}=");
+        let read_back = reply
+            .lines()
+            .find_map(|l| l.trim().strip_prefix(key.as_str()))
+            .and_then(|v| v.trim().parse::<f32>().ok());
+        let Some(read_back) = read_back else {
+            bail!("'{query}' answered '{}' without parameter 0x{id:X}", reply.trim());
+        };
+        // The controller prints each f32 so that it reads back exactly.
+        if read_back != sent {
+            bail!("parameter 0x{id:X} ({name}): sent {sent}, the controller reads back {read_back}");
+        }
+        uploaded.push(Uploaded { id, name, sent, read_back });
+    }
+    if save {
+        gcs.command("WPA")?;
+    }
+    Ok(CalibrateReport { uploaded, not_uploaded: not_carried(p), saved: save })
+}
+
+pub fn run(p: &Params, args: &CalibrateOptions) -> Result<()> {
+    let mut gcs = GcsClient::open(args.tcp.as_deref(), args.serial.as_deref(), args.baud)?;
+    let report = upload(&mut gcs, p, args.save)?;
+    if args.json {
+        println!("{}", serde_json::to_string(&report)?);
+        return Ok(());
+    }
+    println!("{:<8} {:<40} {:>14} {:>14}", "id", "parameter", "sent", "read back");
+    for u in &report.uploaded {
+        println!("{:<8} {:<40} {:>14} {:>14}", format!("0x{:X}", u.id), u.name, u.sent, u.read_back);
+    }
+    for name in &report.not_uploaded {
+        println!(
+            "not uploaded: {name} (the firmware's fixed-point model does not carry it; only the \
+             simulator's model has it)"
+        );
+    }
+    if report.saved {
+        println!("stored in the controller's flash (WPA)");
+    } else {
+        println!("in effect until reset; `--save` (or WPA) stores it");
+    }
+    Ok(())
+}
