@@ -148,7 +148,7 @@ pub fn with_defaults(hw: &Hardware, unset: Unset) -> ControllerConfig {
     cfg.preload_max_n = full_contact_preload_n(&cfg);
     cfg.moving_mass_kg = hw.motor.moving_mass_kg.to_num();
     cfg.mu_dynamic = hw.motor.mu.to_num();
-    cfg.tangential_scale = hw.motor.tangential_scale.to_num();
-    cfg.normal_force_ratio = hw.motor.normal_force_ratio.to_num();
+    cfg.tangential_scale = hw.motor.tangential_scale;
+    cfg.normal_force_ratio = hw.motor.normal_force_ratio;
     cfg
 }

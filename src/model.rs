@@ -33,8 +33,8 @@ pub struct MotorConstants {
     /// computed with: `kc·Yc` is proportional to ρ and `ω·Xc` (and the fine stroke) to λ, so a
     /// motor calibrated to other values scales the table by their ratios
     /// ([`crate::controller::ControllerConfig::per_volt`]).
-    pub normal_force_ratio: Fx,
-    pub tangential_scale: Fx,
+    pub normal_force_ratio: f32,
+    pub tangential_scale: f32,
 }
 
 /// Mean contact force over a period per unit `kc·Yc`, g(θ) = (2 sin(θ/2) − θ cos(θ/2))/2π, on

@@ -79,8 +79,8 @@ pub const PROTOTYPE_MOTOR: MotorConstants = MotorConstants {
     viscous_un_per_mm_s: Fx::from_bits(65536),
     fine_nm_per_v: Fx::from_bits(576717),
     moving_mass_kg: Fx::from_bits(65536),
-    normal_force_ratio: Fx::from_bits(33751),
-    tangential_scale: Fx::from_bits(13107),
+    normal_force_ratio: 0.515,
+    tangential_scale: 0.2,
 };
 
 const _: () = assert!(FREQ_POINTS == 21);

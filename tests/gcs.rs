@@ -538,8 +538,8 @@ fn calibrated_motor_parameters_default_to_the_table_and_are_checked_as_a_whole()
     let want = format!(
         "1 0x101B={} \n1 0x101C={} \n1 0x101D={} \n1 0x101E=0 \n1 0x101F=0\n",
         shown(m.mu),
-        shown(m.tangential_scale),
-        shown(m.normal_force_ratio)
+        m.tangential_scale,
+        m.normal_force_ratio
     );
     rig.transcript(&[(b"SPA? 1 0x101B 1 0x101C 1 0x101D 1 0x101E 1 0x101F\n", want.as_bytes())]);
     rig.transcript(&[

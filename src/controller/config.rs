@@ -85,8 +85,7 @@ pub const CALIBRATION_RATIO_MAX: f32 = 4.0;
 impl ControllerConfig {
     /// Calibrated over table λ and ρ: (tangential, normal); 1 when the table has none.
     pub fn calibration_ratios(&self) -> (f32, f32) {
-        let ratio = |x: f32, table: Fx| {
-            let t: f32 = table.to_num();
+        let ratio = |x: f32, t: f32| {
             if t > 0.0 {
                 x / t
             } else {

@@ -23,8 +23,8 @@ pub fn motor_constants(p: &Params) -> MotorConstants {
         // Common offset δ on both stacks moves the foot by λ·stroke·2δ (eq. 1).
         fine_nm_per_v: Fx::from_num(2.0 * p.stator.tangential_scale * p.stack.stroke_m_per_v * 1e9),
         moving_mass_kg: Fx::from_num(p.slider.mass_kg),
-        normal_force_ratio: Fx::from_num(p.stator.normal_force_ratio),
-        tangential_scale: Fx::from_num(p.stator.tangential_scale),
+        normal_force_ratio: p.stator.normal_force_ratio as f32,
+        tangential_scale: p.stator.tangential_scale as f32,
     };
     for i in 0..FREQ_POINTS {
         let f_hz = 400.0 + 100.0 * i as f64;
@@ -64,10 +64,13 @@ pub fn motor_table_source(p: &Params, source_name: &str) -> String {
         ("viscous_un_per_mm_s", c.viscous_un_per_mm_s),
         ("fine_nm_per_v", c.fine_nm_per_v),
         ("moving_mass_kg", c.moving_mass_kg),
-        ("normal_force_ratio", c.normal_force_ratio),
-        ("tangential_scale", c.tangential_scale),
     ] {
         let _ = writeln!(s, "    {name}: Fx::from_bits({}),", v.to_bits());
+    }
+    for (name, v) in [("normal_force_ratio", c.normal_force_ratio), ("tangential_scale", c.tangential_scale)]
+    {
+        // `{:?}` prints the shortest text that reads back as the same f32.
+        let _ = writeln!(s, "    {name}: {v:?},");
     }
     let _ = writeln!(s, "}};");
     let _ = writeln!(s);

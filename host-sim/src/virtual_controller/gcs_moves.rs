@@ -207,3 +207,19 @@ pub fn run(o: &MovesOptions) -> Result<()> {
     println!("(recorded every {:.4} s)", moves.first().map_or(0.0, |m| m.record_period_s));
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::settle_time_s;
+
+    #[test]
+    fn settle_time_is_the_point_after_the_last_one_outside_the_window() {
+        let rows = |xs: &[f64]| xs.iter().map(|&x| (0.0, x)).collect::<Vec<_>>();
+        // Points at 0, 2, 4, … ms; out of ±0.05 at 0 and 4 ms (index 2), in from index 3 on.
+        let r = rows(&[0.0, 0.9, 1.06, 1.04, 0.97, 1.0]);
+        assert_eq!(settle_time_s(&r, 1.0, 0.05, 0.002), Some(0.006));
+        // In from the start; never in by the end.
+        assert_eq!(settle_time_s(&rows(&[1.0, 1.01]), 1.0, 0.05, 0.002), Some(0.0));
+        assert_eq!(settle_time_s(&rows(&[0.0, 0.5, 0.8]), 1.0, 0.05, 0.002), None);
+    }
+}
