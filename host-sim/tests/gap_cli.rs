@@ -161,7 +161,7 @@ fn measure_refuses_an_unknown_effect_name() {
         err.trim_end(),
         "error: --effect 'rail:rail_coulomb_n=1': unknown effect 'rail' (known: rail_friction, \
          assembly_asymmetry, preload_dependent_friction, stribeck_friction, amplifier_rolloff, \
-         stator_resonance, hertz_contact)"
+         stator_resonance, hertz_contact, slider_inertia)"
     );
     assert!(!csv.exists(), "nothing written");
 }
