@@ -287,9 +287,10 @@ const SLIDER_INERTIA: EffectInfo = EffectInfo {
     name: "slider_inertia",
     params: &["inverse_mass_per_kg"],
     // Each contact arc kicks the carriage by ≈ μ·kc·Yc/(M·ω) against a foot speed ω·Xc: the
-    // relative ripple goes as 1/(M·ω²) (the frequency), and the speed it costs grows toward
-    // stall (the load). Voltage cancels (kc·Yc and Xc both scale with it).
-    signature: &[Axis::Frequency, Axis::Load],
+    // relative ripple goes as 1/(M·ω²) (the frequency). kc·Yc and Xc both scale with the voltage,
+    // so the drive enters through the contact arc, set by preload/(kc·Yc) (the preload and the
+    // voltage), and the load through load/(μ·kc·Yc) (the load).
+    signature: &[Axis::Preload, Axis::Voltage, Axis::Frequency, Axis::Load],
     // Up to 10 /kg (a 100 g carriage).
     fit: &[FitParam { name: "inverse_mass_per_kg", lo: 0.0, hi: 10.0, zero: 0.0, starts: &[0.3, 2.0] }],
 };
