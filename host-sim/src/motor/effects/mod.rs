@@ -141,7 +141,12 @@ impl EffectModel {
             return v;
         }
         let resisting = self.resisting_n(load_n, v, v.signum());
-        v + inertia::inertial_correction_m_s(&self.base, self.frequency_hz, self.inverse_mass_per_kg, resisting)
+        v + inertia::inertial_correction_m_s(
+            &self.base,
+            self.frequency_hz,
+            self.inverse_mass_per_kg,
+            resisting,
+        )
     }
 
     /// [`Self::speed_at_load_m_s`] of a slider that cannot change speed within a period.
