@@ -8,10 +8,11 @@
 //!
 //! - per step the contact force is held at its mid-step value and the foot speed is linear
 //!   between the step's ends, and within the step the slip's zero crossing and a stick are
-//!   located exactly (at most two events per step), so 128 steps per period do what the 720 fixed
-//!   steps of `steady_inertia` do (the tests compare them);
-//! - the periodic `v(0)` is found by a secant iteration started at the constant-speed speed
-//!   (a handful of periods), with the bracketing regula falsi as the fallback;
+//!   located exactly (at most two events per step): 128 steps per period agree with 4096 within
+//!   0.2 % of the no-load speed, and with the 720 fixed steps of `steady_inertia` within 0.7 %
+//!   (tests/gap_effects.rs);
+//! - the periodic `v(0)` is found by a secant iteration started at the same stepping's `M → ∞`
+//!   speed (a handful of periods), with the bracketing regula falsi as the fallback;
 //! - the model is the base model's speed plus the orbit's mean speed minus the same stepping's
 //!   `M → ∞` limit (the root of its period-averaged force). The discretisation error is then an
 //!   error of the inertial correction only, which vanishes with `1/M`: the effect is continuous
