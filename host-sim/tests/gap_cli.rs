@@ -120,7 +120,11 @@ fn measure_then_gap_end_to_end() {
     let after = v["gap_after"].as_f64().unwrap();
     assert!(after < 0.4 * before, "{before} -> {after}");
     let cands = v["candidates"].as_array().unwrap();
-    assert_eq!(cands.len(), 7, "every library effect is a candidate in round 1");
+    assert_eq!(
+        cands.len(),
+        host_sim::motor::effects::EFFECT_NAMES.len(),
+        "every library effect is a candidate in round 1"
+    );
     for c in cands {
         for field in ["name", "score", "lr", "delta_bic", "cv_improvement", "params"] {
             assert!(!c[field].is_null(), "{field} missing in {c}");
@@ -161,7 +165,7 @@ fn measure_refuses_an_unknown_effect_name() {
         err.trim_end(),
         "error: --effect 'rail:rail_coulomb_n=1': unknown effect 'rail' (known: rail_friction, \
          assembly_asymmetry, preload_dependent_friction, stribeck_friction, amplifier_rolloff, \
-         stator_resonance, hertz_contact)"
+         stator_resonance, hertz_contact, slider_inertia)"
     );
     assert!(!csv.exists(), "nothing written");
 }

@@ -203,6 +203,51 @@ fn hertz_contact_is_named_and_recovered_on_a_compliant_contact() {
     let _ = recovers("hertz_contact", &[("hertz_exponent", 1.0 / 3.0)], soft);
 }
 
+/// A lighter carriage on the heavy-slider stator: the data come from the plant with a 3 kg
+/// carriage (`slider.mass_kg`, no effect section) instead of 50 kg; the workflow gets the
+/// heavy-slider file, whose base model is the constant-speed model. It must name
+/// `slider_inertia` and recover the mass.
+///
+/// 3 kg: at 900 Hz it runs 5 % (no load) to over 100 % (near stall, where it goes backwards)
+/// slower than the constant-speed model, the gap is ≈ 9 % against 1 % noise, and the inertial
+/// model still follows the plant: 1.6 % rms on 90 of the grid's rows at the true parameters,
+/// weighted as the fit weighs them, against 1.1 % for the 50 kg plant and the constant-speed
+/// model (mostly a calibration offset). Lighter carriages lose far more (0.5–1 kg go backwards
+/// near stall at 900 Hz), but there the model's own error against the plant reaches 6–8 % at
+/// some points (tests/steady_inertia.rs finds it worse still on the paper's stator) and leaves
+/// frequency structure above the noise: at 2 kg the effect is only a partial candidate. Measured
+/// over seeds 13–16: 3.13–3.15 kg with a reported σ of 0.35 %; the +5 % is the model's bias
+/// against the plant, not noise, so the bound is 10 %, not kσ.
+#[test]
+fn slider_inertia_of_a_lighter_carriage_is_named_and_its_mass_recovered() {
+    const CARRIAGE_KG: f64 = 3.0;
+    let mut truth = Params::heavy_slider();
+    truth.slider.mass_kg = CARRIAGE_KG;
+    let rows = synthesize(&truth, &Grid::paper(), 1.0, 13, &|| {});
+    let r = analyze(&perturbed(&Params::heavy_slider()), &rows, &Options::default(), &|_, _, _| {})
+        .expect("workflow runs");
+    signature_line(&r);
+    let named = r.final_effects.iter().find(|e| e.name == "slider_inertia");
+    let s = named.and_then(|e| e.params.iter().find(|p| p.name == "inverse_mass_per_kg"));
+    let rank =
+        r.candidates.iter().find(|c| c.round == 1 && c.name == "slider_inertia").map_or(0, |c| c.score_rank);
+    eprintln!(
+        "RECOVERY slider_inertia: mass hidden {CARRIAGE_KG} kg fitted {:?} kg (1/M {:?} ± {:?}); gap {:.4} -> {:.4}; score rank {rank} named {:?} ({:.1} s)",
+        s.map(|p| 1.0 / p.value),
+        s.map(|p| p.value),
+        s.map(|p| p.std_dev),
+        r.gap_before,
+        r.gap_after,
+        r.named_effects,
+        r.elapsed_s
+    );
+    assert_eq!(r.named_effects, ["slider_inertia"]);
+    let s = s.expect("fitted");
+    let mass_kg = 1.0 / s.value;
+    assert!((mass_kg - CARRIAGE_KG).abs() <= 0.1 * CARRIAGE_KG, "mass {mass_kg} kg");
+    assert!(r.gap_after <= 0.4 * r.gap_before, "gap {:.4} -> {:.4}", r.gap_before, r.gap_after);
+}
+
 #[test]
 fn hertz_contact_on_the_ceramic_contact_is_below_noise_and_nothing_is_named() {
     let mut truth = Params::heavy_slider();
@@ -298,7 +343,8 @@ fn an_unknown_effect_in_the_library_is_an_error() {
     assert_eq!(
         text,
         "effect library: unknown effect 'rail_fricton' (known: rail_friction, assembly_asymmetry, \
-         preload_dependent_friction, stribeck_friction, amplifier_rolloff, stator_resonance, hertz_contact)"
+         preload_dependent_friction, stribeck_friction, amplifier_rolloff, stator_resonance, hertz_contact, \
+         slider_inertia)"
     );
     // Every known name is accepted.
     assert!(host_sim::motor::effects::EFFECT_NAMES

@@ -141,6 +141,8 @@ pub struct Plant {
     drive_off: bool,
     // Effects beyond the base model (crate::motor::effects); all inactive in the base model.
     effects: Effects,
+    /// Moving mass: `slider.mass_kg`, or the `slider_inertia` effect's `1/inverse_mass_per_kg`.
+    slider_mass_kg: f64,
     /// Sense of the foot's ellipse (+1/−1), inferred from the two stack voltages
     /// (`assembly_asymmetry` only).
     drive_direction: i8,
@@ -254,6 +256,7 @@ impl Plant {
             foot_speed_m_s: 0.0,
             drive_off: false,
             effects: p.effects.clone(),
+            slider_mass_kg: p.effects.slider_mass_kg(p.slider.mass_kg),
             drive_direction: 1,
             sense_lp: 0.0,
             preload_setting_n: preload_n,
@@ -510,7 +513,7 @@ impl Plant {
     fn update_slider(&mut self, fc: f64, foot_speed: f64) {
         let dt = self.dt_s;
         let f = &self.p.friction;
-        let mass = self.p.slider.mass_kg;
+        let mass = self.slider_mass_kg;
         let mut ext =
             self.load.force_n(self.slider_x_m) - self.p.slider.damping_n_s_per_m * self.slider_v_m_s;
         let v_old = self.slider_v_m_s;
@@ -573,7 +576,7 @@ impl Plant {
     fn slider_on_shear_spring(&mut self, fc: f64, foot_speed: f64, ext: f64, mu_stick: f64, mu_scale: f64) {
         let dt = self.dt_s;
         let f = &self.p.friction;
-        let mass = self.p.slider.mass_kg;
+        let mass = self.slider_mass_kg;
         let kt = self.p.contact.tangential_stiffness_n_per_m;
         let ct = 2.0 * self.p.contact.damping_ratio * (kt * mass).sqrt();
         let v_old = self.slider_v_m_s;

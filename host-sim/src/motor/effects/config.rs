@@ -26,6 +26,8 @@ pub struct Effects {
     pub stator_resonance: Option<StatorResonance>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub hertz_contact: Option<HertzContact>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub slider_inertia: Option<SliderInertia>,
     /// One-sigma uncertainty of fitted effect parameters, by parameter name (written by `gap`).
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub std_dev: BTreeMap<String, f64>,
@@ -91,6 +93,15 @@ pub struct HertzContact {
     pub hertz_ref_preload_n: f64,
 }
 
+/// The carriage has a finite mass `M = 1/inverse_mass_per_kg` (0: the base model's constant
+/// speed, `M = ∞`). In the plant it replaces `slider.mass_kg`; at zero strength the plant keeps
+/// `slider.mass_kg` and the steady model stays the constant-speed model, each its side's base.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SliderInertia {
+    pub inverse_mass_per_kg: f64,
+}
+
 pub const DEFAULT_STRIBECK_SPEED_M_S: f64 = 3e-4;
 pub const DEFAULT_RESONANCE_HZ: f64 = 3170.0;
 pub const DEFAULT_RESONANCE_DAMPING: f64 = 0.05;
@@ -123,6 +134,7 @@ pub enum Effect {
     AmplifierRolloff,
     StatorResonance,
     HertzContact,
+    SliderInertia,
 }
 
 /// What the library knows of one effect, apart from its physics.
@@ -155,7 +167,7 @@ pub struct FitParam {
 
 impl Effect {
     /// Every effect of the library, in its fixed order.
-    pub const ALL: [Effect; 7] = [
+    pub const ALL: [Effect; 8] = [
         Effect::RailFriction,
         Effect::AssemblyAsymmetry,
         Effect::PreloadDependentFriction,
@@ -163,6 +175,7 @@ impl Effect {
         Effect::AmplifierRolloff,
         Effect::StatorResonance,
         Effect::HertzContact,
+        Effect::SliderInertia,
     ];
 
     /// What the library knows of this effect: its row of the one table below.
@@ -175,6 +188,7 @@ impl Effect {
             Effect::AmplifierRolloff => &AMPLIFIER_ROLLOFF,
             Effect::StatorResonance => &STATOR_RESONANCE,
             Effect::HertzContact => &HERTZ_CONTACT,
+            Effect::SliderInertia => &SLIDER_INERTIA,
         }
     }
 
@@ -269,6 +283,18 @@ const HERTZ_CONTACT: EffectInfo = EffectInfo {
     fit: &[FitParam { name: "hertz_exponent", lo: 0.0, hi: 1.0, zero: 0.0, starts: &[0.1, 0.4] }],
 };
 
+const SLIDER_INERTIA: EffectInfo = EffectInfo {
+    name: "slider_inertia",
+    params: &["inverse_mass_per_kg"],
+    // Each contact arc kicks the carriage by ≈ μ·kc·Yc/(M·ω) against a foot speed ω·Xc: the
+    // relative ripple goes as 1/(M·ω²) (the frequency). kc·Yc and Xc both scale with the voltage,
+    // so the drive enters through the contact arc, set by preload/(kc·Yc) (the preload and the
+    // voltage), and the load through load/(μ·kc·Yc) (the load).
+    signature: &[Axis::Preload, Axis::Voltage, Axis::Frequency, Axis::Load],
+    // Up to 10 /kg (a 100 g carriage).
+    fit: &[FitParam { name: "inverse_mass_per_kg", lo: 0.0, hi: 10.0, zero: 0.0, starts: &[0.3, 2.0] }],
+};
+
 /// An unknown name is an error that names it and the known ones, on one line. Every effect name
 /// a user gives goes through here.
 impl FromStr for Effect {
@@ -301,8 +327,8 @@ impl<'de> Deserialize<'de> for Effect {
 }
 
 /// Names of the library's effects, in [`Effect::ALL`]'s order.
-pub const EFFECT_NAMES: [&str; 7] = {
-    let mut names = [""; 7];
+pub const EFFECT_NAMES: [&str; 8] = {
+    let mut names = [""; 8];
     let mut i = 0;
     while i < names.len() {
         names[i] = Effect::ALL[i].name();
@@ -374,6 +400,7 @@ impl Effects {
             Effect::AmplifierRolloff => self.amplifier_rolloff.is_some_and(|e| e.rolloff_corner_hz != 0.0),
             Effect::StatorResonance => self.stator_resonance.is_some_and(|e| e.resonance_strength != 0.0),
             Effect::HertzContact => self.hertz_contact.is_some_and(|e| e.hertz_exponent != 0.0),
+            Effect::SliderInertia => self.slider_inertia.is_some_and(|e| e.inverse_mass_per_kg != 0.0),
         }
     }
 
@@ -387,6 +414,7 @@ impl Effects {
             Effect::AmplifierRolloff => self.amplifier_rolloff = None,
             Effect::StatorResonance => self.stator_resonance = None,
             Effect::HertzContact => self.hertz_contact = None,
+            Effect::SliderInertia => self.slider_inertia = None,
         }
     }
 
@@ -458,6 +486,11 @@ impl Effects {
                     e.hertz_ref_preload_n = value
                 }
             }
+            "inverse_mass_per_kg" => {
+                self.slider_inertia
+                    .get_or_insert(SliderInertia { inverse_mass_per_kg: 0.0 })
+                    .inverse_mass_per_kg = value
+            }
             _ => bail!("unknown effect parameter '{name}'"),
         }
         Ok(())
@@ -512,6 +545,9 @@ impl Effects {
                 bail!("effects: hertz_ref_preload_n must be positive, got {}", e.hertz_ref_preload_n);
             }
         }
+        if let Some(e) = self.slider_inertia {
+            finite_nonneg("inverse_mass_per_kg", e.inverse_mass_per_kg)?;
+        }
         for (k, v) in &self.std_dev {
             if Effect::of_param(k).is_none() {
                 bail!("effects.std_dev: unknown parameter '{k}'");
@@ -528,6 +564,21 @@ impl Effects {
                 base_n_per_m * (preload_n.max(1e-6) / h.hertz_ref_preload_n).powf(h.hertz_exponent)
             }
             _ => base_n_per_m,
+        }
+    }
+
+    /// `slider_inertia`: 1/M when present with a non-zero strength, else 0 (the constant-speed
+    /// model of an infinitely heavy slider).
+    pub fn inverse_mass_per_kg(&self) -> f64 {
+        self.slider_inertia.map_or(0.0, |e| e.inverse_mass_per_kg)
+    }
+
+    /// `slider_inertia`: the carriage mass the plant simulates, `1/inverse_mass_per_kg`, or the
+    /// file's `slider.mass_kg` when the effect is absent or at zero strength.
+    pub fn slider_mass_kg(&self, file_mass_kg: f64) -> f64 {
+        match self.slider_inertia {
+            Some(e) if e.inverse_mass_per_kg != 0.0 => 1.0 / e.inverse_mass_per_kg,
+            _ => file_mass_kg,
         }
     }
 

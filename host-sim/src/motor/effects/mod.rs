@@ -14,8 +14,15 @@
 //! | `amplifier_rolloff` | one extra pole at `fc` on each stack voltage | voltage × `1/√(1 + (f/fc)²)` |
 //! | `stator_resonance` | stroke + k·(resonator(stroke) − stroke), resonator at `fr`, ζ | voltage × `|1 + k·(H(jω) − 1)|` |
 //! | `hertz_contact` | `kc × (F0/Fref)^n` | same `kc` in eq. (7) |
+//! | `slider_inertia` | carriage mass `1/s` instead of `slider.mass_kg` | constant-speed speed + (mean speed of the periodic orbit of mass `1/s` − its `M → ∞` limit), [`inertia`] |
+//!
+//! `slider_inertia` and the file's `slider.mass_kg`: the base steady-state model has no mass (it
+//! is the constant-speed model, `M = ∞`) while the base plant simulates `slider.mass_kg`; the
+//! effect's mass `1/s` replaces it in the plant and enters the steady-state model, so with the
+//! effect both sides simulate the same carriage, and at zero strength each is its own base.
 
 pub mod config;
+pub mod inertia;
 pub use config::*;
 
 use crate::motor::params::Params;
@@ -41,6 +48,9 @@ pub struct EffectModel {
     pub stribeck_speed_m_s: f64,
     pub rail_coulomb_n: f64,
     pub rail_viscous_n_s_per_m: f64,
+    /// `slider_inertia`: 1/M (0: constant speed).
+    pub inverse_mass_per_kg: f64,
+    pub frequency_hz: f64,
 }
 
 impl EffectModel {
@@ -78,6 +88,8 @@ impl EffectModel {
             stribeck_speed_m_s: vs,
             rail_coulomb_n: rc,
             rail_viscous_n_s_per_m: rv,
+            inverse_mass_per_kg: e.inverse_mass_per_kg(),
+            frequency_hz: c.frequency_hz,
         }
     }
 
@@ -119,9 +131,26 @@ impl EffectModel {
         load_n + self.rail_coulomb_n * coulomb_sign + self.rail_viscous_n_s_per_m * v
     }
 
-    /// Steady speed along the commanded direction at `load_n`; 0 when stalled by the guide's
-    /// Coulomb friction; negative when the load overruns the motor.
+    /// Steady (mean) speed along the commanded direction at `load_n`; 0 when stalled by the
+    /// guide's Coulomb friction; negative when the load overruns the motor. With
+    /// `slider_inertia`, the constant-speed speed plus the carriage's inertial correction.
     pub fn speed_at_load_m_s(&self, load_n: f64) -> f64 {
+        let v = self.constant_speed_at_load_m_s(load_n);
+        if self.inverse_mass_per_kg == 0.0 || v == 0.0 {
+            // v = 0: held by the guide's Coulomb friction (the orbit is not solved there).
+            return v;
+        }
+        let resisting = self.resisting_n(load_n, v, v.signum());
+        v + inertia::inertial_correction_m_s(
+            &self.base,
+            self.frequency_hz,
+            self.inverse_mass_per_kg,
+            resisting,
+        )
+    }
+
+    /// [`Self::speed_at_load_m_s`] of a slider that cannot change speed within a period.
+    pub fn constant_speed_at_load_m_s(&self, load_n: f64) -> f64 {
         let wx = self.base.foot_speed_m_s.max(1e-12);
         let net = |v: f64, s: f64| self.thrust_n(v) - self.resisting_n(load_n, v, s);
         let at0 = self.thrust_n(0.0);
