@@ -205,4 +205,8 @@ fn calibrate_refuses_another_motor_whole_and_reports_what_it_cannot_carry() {
     let rail =
         cal["uploaded"].as_array().unwrap().iter().find(|u| u["id"] == 0x101E).expect("0x101E sent").clone();
     assert_eq!(rail["read_back"].as_f64(), Some(0.2));
+    assert!(
+        cal["uploaded"].as_array().unwrap().iter().all(|u| u["id"] != 0x101A),
+        "no inertia effect: mass kept"
+    );
 }
