@@ -339,7 +339,7 @@ fn run(cli: Cli) -> Result<()> {
             let off = (inertial - constant).abs() / constant.max(1e-12);
             if off > 0.05 {
                 eprintln!(
-                    "warning: the {} kg carriage of this parameter file runs {:.0} % off the constant-speed model the gap workflow fits (16 N, 100 V, 1.5 kHz); the residuals include its inertia. For a heavy characterisation sled use --params host-sim/params/heavy-slider.toml",
+                    "warning: the {} kg carriage of this parameter file runs {:.0} % off the constant-speed model the gap workflow fits (16 N, 100 V, 1.5 kHz); the residuals include its inertia (the slider_inertia effect names it down to about 3 kg). For a heavy characterisation sled use --params host-sim/params/heavy-slider.toml",
                     params.slider.mass_kg,
                     100.0 * off
                 );
