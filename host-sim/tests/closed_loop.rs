@@ -169,3 +169,45 @@ fn a_moving_mass_parameter_off_by_two_either_way_still_settles() {
         assert!(r.final_error_nm.abs() <= 50.0);
     }
 }
+
+/// Ten 1 mm moves out and back, `load` on the slider, on a plant whose truth is `truth` and a
+/// controller built for the prototype: each move's peak following error (µm).
+fn back_and_forth(truth: &Params, load: ExternalLoad) -> Vec<f64> {
+    let p = Params::prototype();
+    let mut sil = ready_board(truth, controller_config(&p), 16.0).unwrap();
+    sil.set_load(load);
+    (0..10)
+        .map(|i| {
+            let r = run_move(&mut sil, if i % 2 == 0 { 1_000_000 } else { 0 }, 3.0, 0.05);
+            assert!(r.fault.is_none() && r.settle_time_s.is_some(), "move {i}: {r:?}");
+            r.max_following_error_um
+        })
+        .collect()
+}
+
+/// Issue 11 item 3, in part. What the load observer learns in a move is the load plus the
+/// model's thrust error along the drive; carried into a move the other way, the error has the
+/// wrong sign. Measured before the fix, on a plant with μ 15 % below the table's: 0.71 µm peak
+/// following error on the first move, 2.0–2.2 µm on every later one. Now a move starts from the
+/// mean of the end estimates of the last move each way (the load, which both share): the later
+/// moves stay near the first (measured 0.68–1.10 µm, mean 1.15× the first). The issue's goal,
+/// the tenth at most half the first, is not reached: the first move is already the best.
+#[test]
+fn repeated_moves_out_and_back_do_not_carry_the_model_error_with_the_wrong_sign() {
+    let mut truth = Params::prototype();
+    truth.friction.mu_dynamic *= 0.85;
+    truth.friction.mu_static *= 0.85;
+    let fe = back_and_forth(&truth, ExternalLoad::default());
+    let later = fe[2..].iter().sum::<f64>() / 8.0;
+    assert!(later <= 1.5 * fe[0], "first {:.3} µm, later moves {:.3} µm on average: {fe:?}", fe[0], later);
+    // An unknown constant load is what both senses share: it is kept, not dropped, so the
+    // moves against it do not get worse either (0.8 N pulling toward −x).
+    let loaded = back_and_forth(&truth, ExternalLoad::opposing(0.8, 1));
+    let later = loaded[2..].iter().sum::<f64>() / 8.0;
+    assert!(
+        later <= 1.5 * loaded[0],
+        "with 0.8 N: first {:.3} µm, later {:.3} µm: {loaded:?}",
+        loaded[0],
+        later
+    );
+}

@@ -30,6 +30,7 @@ impl Controller {
             self.observed_bias_n = cfg.expected_load_n;
             self.integral_n = 0.0;
             self.thrust_bias_n = cfg.expected_load_n;
+            self.end_bias_n = [None; 2];
         }
         if cfg.preload != self.cfg.preload {
             // Re-primed by the next sample.
@@ -77,6 +78,7 @@ impl Controller {
             return Err(CommandError::OutOfTravel);
         }
         self.check_preload()?;
+        self.start_load_estimate(target_nm);
         self.profile.set_target(target_nm);
         // The braking rate is fixed for the whole move: a braking curve that changed under the
         // profile's feet would arrive with speed left over.
@@ -90,6 +92,28 @@ impl Controller {
             self.mode = Mode::Coarse;
         }
         Ok(())
+    }
+
+    /// The load estimate a move starts from. What the observer learns in a move is the load plus
+    /// the model's thrust error along the drive; the error changes sign with the drive, so an
+    /// estimate carried into a move the other way starts it with twice the error (ten
+    /// back-and-forth 1 mm moves, 1 kg carriage: 0.55 µm peak following error on the first, 2.7
+    /// on every later one, with μ right). Once a move each way has ended, the move starts from
+    /// the mean of their end estimates: the load, which both share, without the error.
+    fn start_load_estimate(&mut self, target_nm: i64) {
+        if !self.cfg.feedforward {
+            return;
+        }
+        if let Some(slot) = self.last_sense.and_then(|s| self.end_bias_n.get_mut(s)) {
+            *slot = Some(self.observed_bias_n + self.integral_n);
+        }
+        if let [Some(plus), Some(minus)] = self.end_bias_n {
+            let common = 0.5 * (plus + minus);
+            self.observed_bias_n = common;
+            self.integral_n = 0.0;
+            self.thrust_bias_n = common;
+        }
+        self.last_sense = Some(usize::from(target_nm < self.position_nm()));
     }
 
     pub fn move_relative(&mut self, delta_nm: i64) -> Result<(), CommandError> {

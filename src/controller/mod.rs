@@ -214,6 +214,10 @@ pub struct Controller {
     fine_misses: u32,
     /// Load observer: thrust along +x the model says the motor gives, less M·a (N).
     observed_bias_n: f32,
+    /// The load estimate (observer plus integral, N along +x) at the end of the last move each
+    /// way (+, −), and the sense of the last move.
+    end_bias_n: [Option<f32>; 2],
+    last_sense: Option<usize>,
     prev_speed_nm_s: f32,
     decel_nm_s2: f32,
     reference_failures: u32,
@@ -256,6 +260,8 @@ impl Controller {
             accel_ref_nm_s2: 0.0,
             fine_misses: 0,
             observed_bias_n: cfg.expected_load_n,
+            end_bias_n: [None; 2],
+            last_sense: None,
             model: ModelSlot::new(&cfg, 0),
             prev_speed_nm_s: 0.0,
             decel_nm_s2: 1.0,
