@@ -185,29 +185,45 @@ fn back_and_forth(truth: &Params, load: ExternalLoad) -> Vec<f64> {
         .collect()
 }
 
-/// Issue 11 item 3, in part. What the load observer learns in a move is the load plus the
-/// model's thrust error along the drive; carried into a move the other way, the error has the
-/// wrong sign. Measured before the fix, on a plant with μ 15 % below the table's: 0.71 µm peak
-/// following error on the first move, 2.0–2.2 µm on every later one. Now a move starts from the
-/// mean of the end estimates of the last move each way (the load, which both share): the later
-/// moves stay near the first (measured 0.68–1.10 µm, mean 1.15× the first). The issue's goal,
-/// the tenth at most half the first, is not reached: the first move is already the best.
+/// Issue 11 item 3, in part: repeated moves out and back. Two things made every later move worse
+/// than the first, and both are fixed:
+/// - What the load observer learns in a move is the load plus the model's thrust error along the
+///   drive; carried into a move the other way the error has the wrong sign. A move now starts
+///   from the mean of the end estimates of the last move each way (the load, which both share).
+/// - A move that starts from a fine-mode hold has the hold's static offset on both stacks (up to
+///   ±23 V): until the coarse mode has brought it back to centre, the sine has less room in the
+///   amplifier's range. The recentring took 45 ms, the whole speed-up; now 4.5 ms.
+///
+/// Measured before (μ right / μ 15 % low / μ 15 % low and 0.8 N unknown): first move 0.55 /
+/// 0.71 / 4.57 µm peak following error, later ones 0.9–2.8 / 2.0–2.2 / —; now later ones
+/// 0.50–0.60 / 0.66–0.83 / 0.48–1.15 (the second move, the first reversal, still carries its
+/// estimate: 1.7–2.1 µm). The issue's goal, the tenth at most half the first with μ 15 % low, is
+/// not reached there (the first move, from rest with no estimate, is already near the best); it is
+/// with the unknown load, which the later moves start from.
 #[test]
-fn repeated_moves_out_and_back_do_not_carry_the_model_error_with_the_wrong_sign() {
+fn repeated_moves_out_and_back_get_no_worse_and_learn_an_unknown_load() {
+    let right = back_and_forth(&Params::prototype(), ExternalLoad::default());
+    assert!(
+        right[2..].iter().all(|&fe| fe <= 1.5 * right[0]),
+        "μ right: first {:.3} µm, later {right:?}",
+        right[0]
+    );
     let mut truth = Params::prototype();
     truth.friction.mu_dynamic *= 0.85;
     truth.friction.mu_static *= 0.85;
-    let fe = back_and_forth(&truth, ExternalLoad::default());
-    let later = fe[2..].iter().sum::<f64>() / 8.0;
-    assert!(later <= 1.5 * fe[0], "first {:.3} µm, later moves {:.3} µm on average: {fe:?}", fe[0], later);
-    // An unknown constant load is what both senses share: it is kept, not dropped, so the
-    // moves against it do not get worse either (0.8 N pulling toward −x).
+    let low = back_and_forth(&truth, ExternalLoad::default());
+    let later = low[2..].iter().sum::<f64>() / 8.0;
+    assert!(
+        later <= 1.3 * low[0],
+        "μ 15 % low: first {:.3} µm, later {later:.3} on average: {low:?}",
+        low[0]
+    );
+    // An unknown constant load is what both senses share: the later moves start from it.
     let loaded = back_and_forth(&truth, ExternalLoad::opposing(0.8, 1));
     let later = loaded[2..].iter().sum::<f64>() / 8.0;
     assert!(
-        later <= 1.5 * loaded[0],
-        "with 0.8 N: first {:.3} µm, later {:.3} µm: {loaded:?}",
-        loaded[0],
-        later
+        later <= 0.5 * loaded[0],
+        "0.8 N unknown: first {:.3} µm, later {later:.3} on average: {loaded:?}",
+        loaded[0]
     );
 }
