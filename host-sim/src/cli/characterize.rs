@@ -5,15 +5,9 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug, Clone)]
 pub struct CharacterizeArgs {
-    /// The controller's GCS over TCP (e.g. `host-sim serve --tcp 127.0.0.1:50000`).
-    #[arg(long, value_name = "ADDR:PORT", required_unless_present = "serial", conflicts_with = "serial")]
-    pub tcp: Option<String>,
-    /// The controller's GCS over a serial port (a board's ST-LINK port, or `host-sim serve --pty`).
-    #[arg(long, value_name = "DEV")]
-    pub serial: Option<PathBuf>,
-    /// Baud rate of `--serial`.
-    #[arg(long, default_value_t = 115_200)]
-    pub baud: u32,
+    /// How to reach the controller.
+    #[command(flatten)]
+    pub link: super::LinkArgs,
     /// Drive amplitudes (V peak-to-peak), comma-separated.
     #[arg(long, value_delimiter = ',', default_values_t = [60.0, 100.0], value_name = "V,V,...")]
     pub voltages_v: Vec<f64>,
@@ -45,9 +39,9 @@ pub struct CharacterizeArgs {
 impl From<CharacterizeArgs> for CharacterizeOptions {
     fn from(a: CharacterizeArgs) -> Self {
         CharacterizeOptions {
-            tcp: a.tcp,
-            serial: a.serial,
-            baud: a.baud,
+            tcp: a.link.tcp,
+            serial: a.link.serial,
+            baud: a.link.baud,
             voltages_v: a.voltages_v,
             frequencies_hz: a.frequencies_hz,
             directions: a.directions,

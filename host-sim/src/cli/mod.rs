@@ -152,6 +152,20 @@ pub enum Command {
     Moves(moves::MovesArgs),
 }
 
+/// The controller a GCS client command talks to (`characterize`, `calibrate`, `moves`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct LinkArgs {
+    /// The controller's GCS over TCP (e.g. `host-sim serve --tcp 127.0.0.1:50000`).
+    #[arg(long, value_name = "ADDR:PORT", required_unless_present = "serial", conflicts_with = "serial")]
+    pub tcp: Option<String>,
+    /// The controller's GCS over a serial port (a board's ST-LINK port, or `host-sim serve --pty`).
+    #[arg(long, value_name = "DEV")]
+    pub serial: Option<std::path::PathBuf>,
+    /// Baud rate of `--serial`.
+    #[arg(long, default_value_t = 115_200)]
+    pub baud: u32,
+}
+
 #[derive(clap::Args)]
 pub struct PointArgs {
     /// Preload force F0 (N).

@@ -1,19 +1,12 @@
 //! `host-sim moves`'s flags ([`MovesOptions`]).
 
 use host_sim::virtual_controller::gcs_moves::MovesOptions;
-use std::path::PathBuf;
 
 #[derive(clap::Args, Debug, Clone)]
 pub struct MovesArgs {
-    /// The controller's GCS over TCP (e.g. `host-sim serve --tcp 127.0.0.1:50000`).
-    #[arg(long, value_name = "ADDR:PORT", required_unless_present = "serial", conflicts_with = "serial")]
-    pub tcp: Option<String>,
-    /// The controller's GCS over a serial port (a board's ST-LINK port, or `host-sim serve --pty`).
-    #[arg(long, value_name = "DEV")]
-    pub serial: Option<PathBuf>,
-    /// Baud rate of `--serial`.
-    #[arg(long, default_value_t = 115_200)]
-    pub baud: u32,
+    /// How to reach the controller.
+    #[command(flatten)]
+    pub link: super::LinkArgs,
     /// Length of each move (µm): out by it, back, out, …
     #[arg(long, default_value_t = 1000.0, allow_negative_numbers = true)]
     pub distance_um: f64,
@@ -32,9 +25,9 @@ pub struct MovesArgs {
 impl From<MovesArgs> for MovesOptions {
     fn from(a: MovesArgs) -> Self {
         MovesOptions {
-            tcp: a.tcp,
-            serial: a.serial,
-            baud: a.baud,
+            tcp: a.link.tcp,
+            serial: a.link.serial,
+            baud: a.link.baud,
             distance_um: a.distance_um,
             count: a.count,
             record_rate: a.record_rate,
