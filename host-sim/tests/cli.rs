@@ -339,3 +339,21 @@ fn every_option_of_every_subcommand_has_help_text() {
         }
     }
 }
+
+/// The GCS client commands (`calibrate`, `moves`) and the virtual controller's new flags refuse
+/// bad input on one line before they touch a controller.
+#[test]
+fn client_commands_and_serve_flags_refuse_bad_input_on_one_line() {
+    // Nothing listens on port 1: a clear connection error, not a hang.
+    assert_one_line_error(&["calibrate", "--tcp", "127.0.0.1:1"], "cannot connect to 127.0.0.1:1");
+    assert_one_line_error(&["moves", "--tcp", "127.0.0.1:1", "--count", "0"], "--count");
+    assert_one_line_error(&["moves", "--tcp", "127.0.0.1:1", "--distance-um", "0"], "--distance-um");
+    assert_one_line_error(&["moves", "--tcp", "127.0.0.1:1", "--record-rate", "0"], "--record-rate");
+    assert_one_line_error(&["moves", "--tcp", "127.0.0.1:1"], "cannot connect to 127.0.0.1:1");
+    assert_one_line_error(&["calibrate"], "--tcp");
+    assert_one_line_error(&["serve", "--tcp", "127.0.0.1:0", "--load-n", "-1"], "--load-n");
+    assert_one_line_error(
+        &["serve", "--tcp", "127.0.0.1:0", "--firmware-params", "/nonexistent/fw.toml"],
+        "--firmware-params",
+    );
+}
