@@ -1,5 +1,6 @@
-//! The χ² distribution's upper tail and quantiles, for the workflow's noise tests (no statistics
-//! crate in the dependency tree; the regularized incomplete gamma function is enough).
+//! The χ² and F distributions' upper tails and quantiles, for the workflow's noise tests (no
+//! statistics crate in the dependency tree; the regularized incomplete gamma and beta functions
+//! are enough).
 
 /// ln Γ(x) for x > 0 (Lanczos, g = 7, 9 terms; relative error ~1e-15).
 fn ln_gamma(x: f64) -> f64 {
@@ -101,9 +102,111 @@ pub fn quantile_upper(alpha: f64, dof: usize) -> f64 {
     0.5 * (lo + hi)
 }
 
+/// Regularized incomplete beta I_x(a, b), by Lentz's continued fraction on the side where it
+/// converges fast (Numerical Recipes §6.4).
+fn beta_i(a: f64, b: f64, x: f64) -> f64 {
+    if x <= 0.0 {
+        return 0.0;
+    }
+    if x >= 1.0 {
+        return 1.0;
+    }
+    let front = (ln_gamma(a + b) - ln_gamma(a) - ln_gamma(b) + a * x.ln() + b * (1.0 - x).ln()).exp();
+    let cf = |a: f64, b: f64, x: f64| {
+        let tiny = 1e-300;
+        let (qab, qap, qam) = (a + b, a + 1.0, a - 1.0);
+        let mut c = 1.0;
+        let mut d = 1.0 - qab * x / qap;
+        if d.abs() < tiny {
+            d = tiny;
+        }
+        d = 1.0 / d;
+        let mut h = d;
+        for m in 1..1000 {
+            let m = m as f64;
+            let m2 = 2.0 * m;
+            for aa in [
+                m * (b - m) * x / ((qam + m2) * (a + m2)),
+                -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2)),
+            ] {
+                d = 1.0 + aa * d;
+                if d.abs() < tiny {
+                    d = tiny;
+                }
+                c = 1.0 + aa / c;
+                if c.abs() < tiny {
+                    c = tiny;
+                }
+                d = 1.0 / d;
+                h *= d * c;
+            }
+            if (d * c - 1.0).abs() < 1e-15 {
+                break;
+            }
+        }
+        h
+    };
+    if x < (a + 1.0) / (a + b + 2.0) {
+        (front * cf(a, b, x) / a).clamp(0.0, 1.0)
+    } else {
+        (1.0 - front * cf(b, a, 1.0 - x) / b).clamp(0.0, 1.0)
+    }
+}
+
+/// P(F(d1, d2) > x): a ratio of two independent χ²/dof, with `d1` and `d2` degrees of freedom.
+pub fn f_upper_tail(x: f64, d1: usize, d2: usize) -> f64 {
+    let (d1, d2) = (d1.max(1) as f64, d2.max(1) as f64);
+    if x <= 0.0 {
+        return 1.0;
+    }
+    beta_i(0.5 * d2, 0.5 * d1, d2 / (d2 + d1 * x))
+}
+
+/// The `1 − alpha` quantile of F(d1, d2). The workflow's structure test uses it when the noise
+/// itself is estimated from `d2` pseudo-residuals: a χ²/dof over an estimated noise variance is
+/// F-distributed, and a handful of pseudo-residuals (one measured curve of three loads gives one)
+/// leave the noise uncertain enough that the χ² limit would call noise structure.
+pub fn f_quantile_upper(alpha: f64, d1: usize, d2: usize) -> f64 {
+    let alpha = alpha.clamp(1e-300, 1.0);
+    let (mut lo, mut hi) = (0.0, 10.0);
+    while f_upper_tail(hi, d1, d2) > alpha && hi < 1e12 {
+        hi *= 2.0;
+    }
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if f_upper_tail(mid, d1, d2) > alpha {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+        if hi - lo < 1e-10 * hi {
+            break;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// F table values (Abramowitz & Stegun, Table 26.9) and the χ² limit for many noise samples.
+    #[test]
+    fn f_quantiles_match_the_tables() {
+        for (alpha, d1, d2, table) in [
+            (0.05, 1, 10, 4.965),
+            (0.01, 5, 20, 4.103),
+            (0.001, 2, 10, 14.905),
+            (0.001, 1, 10, 21.04),
+            (0.05, 4, 30, 2.690),
+        ] {
+            let q = f_quantile_upper(alpha, d1, d2);
+            assert!((q - table).abs() < 2e-3 * table, "F({d1}, {d2}) 1−{alpha}: {q} vs {table}");
+        }
+        // F(k, ∞) = χ²(k)/k.
+        let q = f_quantile_upper(0.001, 2, 100_000);
+        assert!((q - quantile_upper(0.001, 2) / 2.0).abs() < 0.01, "{q}");
+    }
 
     /// Table values (Abramowitz & Stegun, Table 26.8).
     #[test]

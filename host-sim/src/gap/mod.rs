@@ -260,6 +260,8 @@ struct State {
     model: Model,
     fit: Fit,
     s: f64,
+    /// Pseudo-residuals behind `s` (0: `s` is the residual scale, not a noise estimate).
+    noise_dof: usize,
     ratio: f64,
 }
 
@@ -546,18 +548,30 @@ fn dof(levels: usize) -> usize {
 }
 
 /// [`structure`] tested against the noise at level `alpha`, with `sig`'s conditions flagged.
-fn axis_structure(data: &Data, resid: &[f64], s: f64, alpha: f64, sig: &[Axis]) -> Vec<AxisStructure> {
+fn axis_structure(
+    data: &Data,
+    resid: &[f64],
+    (s, noise_dof): (f64, usize),
+    alpha: f64,
+    sig: &[Axis],
+) -> Vec<AxisStructure> {
     structure(data, resid, s)
         .into_iter()
         .map(|(axis, levels, chi2)| {
             let k = dof(levels);
-            let limit = chi2::quantile_upper(alpha, k);
+            // χ²/dof over an estimated noise variance is F(k, m) with m pseudo-residuals behind
+            // the estimate (→ χ²(k)/k for many); a few leave the noise itself uncertain.
+            let limit_per_dof = if noise_dof > 0 {
+                chi2::f_quantile_upper(alpha, k, noise_dof)
+            } else {
+                chi2::quantile_upper(alpha, k) / k as f64
+            };
             AxisStructure {
                 condition: axis.label(),
                 levels,
                 chi2_per_dof: chi2 / k as f64,
-                noise_limit_per_dof: limit / k as f64,
-                consistent_with_noise: levels < 2 || chi2 <= limit,
+                noise_limit_per_dof: limit_per_dof,
+                consistent_with_noise: levels < 2 || chi2 / k as f64 <= limit_per_dof,
                 signature: sig.contains(&axis),
             }
         })
@@ -619,7 +633,7 @@ pub fn analyze(
     let ratio0 = ratio(&base_fit, n, BASE_PARAMS, s0);
     let base_cal = base_calibration(&base_model, &base_fit, s0);
     let structure_before = structure(&data, &base_fit.resid, s0);
-    let mut state = State { model: base_model, fit: base_fit, s: s0, ratio: ratio0 };
+    let mut state = State { model: base_model, fit: base_fit, s: s0, noise_dof: m0, ratio: ratio0 };
     let mut candidates_out: Vec<Candidate> = Vec::new();
     let mut ambiguity = Vec::new();
     let mut removed = Vec::new();
@@ -655,8 +669,13 @@ pub fn analyze(
                 let lr = (state.fit.ssr - f.ssr) / (state.s * state.s);
                 let cv_with = cv_rms(&m, &data, &f.x, opts.folds);
                 let pred = m.predict(&f.x, &data, &all);
-                let structure =
-                    axis_structure(&data, &f.resid, state.s, opts.signature_alpha, effect.signature());
+                let structure = axis_structure(
+                    &data,
+                    &f.resid,
+                    (state.s, state.noise_dof),
+                    opts.signature_alpha,
+                    effect.signature(),
+                );
                 let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
                 progress(&label, d, todo.len());
                 Candidate {
@@ -741,9 +760,9 @@ pub fn analyze(
             }
         }
         let (s, m) = data.noise_scale(&fit.resid);
-        let s = if m == 0 || !s.is_finite() || s <= 0.0 { state.s } else { s };
+        let (s, m) = if m == 0 || !s.is_finite() || s <= 0.0 { (state.s, state.noise_dof) } else { (s, m) };
         let r = ratio(&fit, n, model.n_params(), s);
-        state = State { model, fit, s, ratio: r };
+        state = State { model, fit, s, noise_dof: m, ratio: r };
     }
     // Name only the effects whose own signature conditions are consistent with noise in the final
     // fit (all accepted effects together, so structure one of them leaves cannot be blamed on
@@ -753,8 +772,13 @@ pub fn analyze(
         .effects
         .iter()
         .map(|e| {
-            let structure =
-                axis_structure(&data, &state.fit.resid, state.s, opts.signature_alpha, e.signature());
+            let structure = axis_structure(
+                &data,
+                &state.fit.resid,
+                (state.s, state.noise_dof),
+                opts.signature_alpha,
+                e.signature(),
+            );
             SignatureTest { effect: e.to_string(), named: clears_signature(&structure), structure }
         })
         .collect();
@@ -763,7 +787,7 @@ pub fn analyze(
     let mut partial_candidates = Vec::new();
     // The noise the signature test used: what a partial candidate shows of its structure is
     // measured against it, so the report says why it was not named.
-    let decision_s = state.s;
+    let decision_s = (state.s, state.noise_dof);
     if !failing.is_empty() {
         let full_model = state.model.clone();
         let full_x = state.fit.x.clone();
@@ -771,7 +795,7 @@ pub fn analyze(
         named.effects.retain(|e| !failing.contains(e));
         let fit = lm_fit(&named, &data, &all, &[sub_x(&full_model, &full_x, &named)], 60);
         let (s, m) = data.noise_scale(&fit.resid);
-        let s = if m == 0 || !s.is_finite() || s <= 0.0 { state.s } else { s };
+        let (s, m) = if m == 0 || !s.is_finite() || s <= 0.0 { (state.s, state.noise_dof) } else { (s, m) };
         let r = ratio(&fit, n, named.n_params(), s);
         let excess = |f: &Fit, p: usize| f.ssr / (s * s) - n.saturating_sub(p) as f64;
         let excess_without = excess(&fit, named.n_params());
@@ -809,7 +833,7 @@ pub fn analyze(
                 structure,
             });
         }
-        state = State { model: named, fit, s, ratio: r };
+        state = State { model: named, fit, s, noise_dof: m, ratio: r };
     }
     let pred_after = state.model.predict(&state.fit.x, &data, &all);
     let gap_after = data.gap(&pred_after);

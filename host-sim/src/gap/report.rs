@@ -281,8 +281,9 @@ fn signature_section(s: &mut String, r: &GapReport) {
         s,
         "## Signature test\n\nAn accepted effect is named only when, in the final fit of all accepted \
          effects together, the residual structure (χ²/dof of the level means in noise units) along \
-         each condition its law acts on stays below the χ² quantile that noise exceeds with \
-         probability {} % for that condition's levels − 1 degrees of freedom; structure along other \
+         each condition its law acts on stays below the quantile that noise exceeds with \
+         probability {} % for that condition's levels − 1 degrees of freedom (F against the number \
+         of pseudo-residuals behind the noise estimate: χ² when they are many); structure along other \
          conditions does not count against it.\n\n| effect | its conditions (χ²/dof, limit) | decision |\n|---|---|---|",
         100.0 * r.signature_alpha
     );
