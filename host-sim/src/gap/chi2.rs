@@ -83,14 +83,20 @@ pub fn upper_tail(x: f64, dof: usize) -> f64 {
 /// The `1 − alpha` quantile of χ² with `dof` degrees of freedom: pure noise exceeds it with
 /// probability `alpha`.
 pub fn quantile_upper(alpha: f64, dof: usize) -> f64 {
+    upper_quantile(alpha, (dof.max(1) as f64) + 10.0, |x| upper_tail(x, dof))
+}
+
+/// The `x` at which a falling upper tail equals `alpha` (bisection, after doubling `hi` until
+/// the tail at it is below `alpha`).
+fn upper_quantile(alpha: f64, mut hi: f64, tail: impl Fn(f64) -> f64) -> f64 {
     let alpha = alpha.clamp(1e-300, 1.0);
-    let (mut lo, mut hi) = (0.0, (dof.max(1) as f64) + 10.0);
-    while upper_tail(hi, dof) > alpha {
+    let mut lo = 0.0;
+    while tail(hi) > alpha && hi < 1e12 {
         hi *= 2.0;
     }
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);
-        if upper_tail(mid, dof) > alpha {
+        if tail(mid) > alpha {
             lo = mid;
         } else {
             hi = mid;
@@ -167,23 +173,7 @@ pub fn f_upper_tail(x: f64, d1: usize, d2: usize) -> f64 {
 /// F-distributed, and a handful of pseudo-residuals (one measured curve of three loads gives one)
 /// leave the noise uncertain enough that the χ² limit would call noise structure.
 pub fn f_quantile_upper(alpha: f64, d1: usize, d2: usize) -> f64 {
-    let alpha = alpha.clamp(1e-300, 1.0);
-    let (mut lo, mut hi) = (0.0, 10.0);
-    while f_upper_tail(hi, d1, d2) > alpha && hi < 1e12 {
-        hi *= 2.0;
-    }
-    for _ in 0..200 {
-        let mid = 0.5 * (lo + hi);
-        if f_upper_tail(mid, d1, d2) > alpha {
-            lo = mid;
-        } else {
-            hi = mid;
-        }
-        if hi - lo < 1e-10 * hi {
-            break;
-        }
-    }
-    0.5 * (lo + hi)
+    upper_quantile(alpha, 10.0, |x| f_upper_tail(x, d1, d2))
 }
 
 #[cfg(test)]
