@@ -138,6 +138,7 @@ pub fn with_defaults(hw: &Hardware, unset: Unset) -> ControllerConfig {
         normal_force_ratio: f,
         rail_coulomb_n: f,
         rail_viscous_n_s_per_m: f,
+        drive_freq_min_hz: f,
     };
     crate::settings::apply_fixed_defaults(&mut cfg);
     // The settings whose default is `hardware(..)` in the table.
@@ -150,5 +151,6 @@ pub fn with_defaults(hw: &Hardware, unset: Unset) -> ControllerConfig {
     cfg.mu_dynamic = hw.motor.mu.to_num();
     cfg.tangential_scale = hw.motor.tangential_scale;
     cfg.normal_force_ratio = hw.motor.normal_force_ratio;
+    cfg.drive_freq_min_hz = hw.motor.lowest_model_freq_hz;
     cfg
 }

@@ -35,6 +35,10 @@ pub struct MotorConstants {
     /// ([`crate::controller::ControllerConfig::per_volt`]).
     pub normal_force_ratio: f32,
     pub tangential_scale: f32,
+    /// Lowest drive frequency at which eq. (7) describes the stator (Hz): 1.4× its foot-clamped
+    /// counterweight mode √((k1 + k2)/m2), where the contact amplitude grows without bound. The
+    /// controller chooses its drive frequency from here up ([`crate::controller::model_cache`]).
+    pub lowest_model_freq_hz: f32,
 }
 
 /// Mean contact force over a period per unit `kc·Yc`, g(θ) = (2 sin(θ/2) − θ cos(θ/2))/2π, on

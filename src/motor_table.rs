@@ -81,6 +81,7 @@ pub const PROTOTYPE_MOTOR: MotorConstants = MotorConstants {
     moving_mass_kg: Fx::from_bits(65536),
     normal_force_ratio: 0.515,
     tangential_scale: 0.2,
+    lowest_model_freq_hz: 1200.0,
 };
 
 const _: () = assert!(FREQ_POINTS == 21);

@@ -349,7 +349,7 @@ settings! {
 
     // id, group, field: type = default; GCS unit, field units per GCS unit (f32 fields; an i64 nm
     // field is always shown in mm), range in the field's unit, keep, description
-    (0x1, "Servo", kp_per_s: f32 = 40.0;
+    (0x1, "Servo", kp_per_s: f32 = 100.0;
         "1/s", 1.0, NON_NEGATIVE, Stored, "Position feedback gain"),
     (0x2, "Servo", ki_n_per_nm_s: f32 = 1e-3;
         "N per nm*s", 1.0, NON_NEGATIVE, Stored, "Load integrator gain"),
@@ -370,9 +370,10 @@ settings! {
         "mm", 1.0, Range::Int { lo: 0, hi: MAX_TRAVEL_NM }, Stored, "Settling window"),
     (0x3F, "Servo", settle_time_s: f32 = 0.01;
         "s", 1.0, NON_NEGATIVE, Stored, "Settling time"),
-    // The top of the band gives the highest speed; the DAC's band is checked too.
+    // The top of the band gives a 0.3 kg and heavier carriage its highest speed; the DAC's band
+    // is checked too.
     (0x1001, "Drive", drive_freq_hz: f32 = 2200.0;
-        "Hz", 1.0, POSITIVE, Stored, "Drive frequency of coarse motion"),
+        "Hz", 1.0, POSITIVE, Stored, "Highest drive frequency of coarse motion"),
     (0x1002, "Drive", max_drive_v: f32 = hardware("the amplifier's output range");
         "V peak-to-peak", 1.0, POSITIVE, Stored, "Maximum drive amplitude"),
     (0x1003, "Motion", speed_fraction: f32 = 0.92;
@@ -449,6 +450,12 @@ settings! {
         "nm per count", 1.0, Range::Int { lo: 1, hi: 1_000_000 }, ReadOnly, "Encoder resolution"),
     (0x1021, "Hardware", loop_hz: u32 = hardware("the DAC rate over 20 samples per period");
         "Hz", 1.0, Range::Int { lo: 1, hi: u32::MAX as i64 }, ReadOnly, "Control loop rate"),
+    // The last stored row (format 5): a version-4 record is this record without it. The
+    // controller chooses the drive frequency from here up to 0x1001, where its model (with the
+    // moving mass) gives the highest speed against the load it expects; at or above 0x1001 the
+    // drive frequency is fixed at 0x1001.
+    (0x1022, "Drive", drive_freq_min_hz: f32 = hardware("the motor table's lowest frequency where eq. 7 holds");
+        "Hz", 1.0, POSITIVE, Stored, "Lowest drive frequency the controller chooses"),
     // PI's SERVO_UPDATE_TIME: PIPython's data recorder tools read it (`RTR` counts these).
     (0x0E000200, "Hardware",
         servo_update_time_s: f32 = derived(|c| 1.0 / c.loop_hz.max(1) as f32, "one period of the control loop");

@@ -20,8 +20,9 @@
 //! rate, the DAC/amplifier description, the encoder resolution and the motor table (the
 //! motor's calibration against that table, `0x101B`–`0x101F`, is stored).
 //!
-//! Versions 3 (before the calibrated motor) and 2 (before the moving mass) are this layout
-//! without the rows added since; those settings then come from the defaults.
+//! Versions 4 (before the lowest drive frequency), 3 (before the calibrated motor) and 2 (before
+//! the moving mass) are this layout without the rows added since; those settings then come from
+//! the defaults.
 //! Version 1 (before the settings table) still loads: it lacked the motion limits (`VEL`, `ACC`,
 //! `DEC`) and the referencing settings, which then come from the defaults; its encoder
 //! resolution (read-only, so always the build's) and the removed fine-mode gain are skipped.
@@ -33,7 +34,7 @@ use crate::settings::{Setting, Ty, Value, SETTINGS};
 pub const MAGIC: u32 = u32::from_le_bytes(*b"PZDP");
 /// Format version; bump on any change of the payload (adding, removing, reordering a stored
 /// setting or changing its type), and teach [`decode`] the old layout.
-pub const VERSION: u16 = 4;
+pub const VERSION: u16 = 5;
 const HEADER_LEN: usize = 8;
 const CRC_LEN: usize = 4;
 
@@ -128,10 +129,14 @@ const ADDED_IN_V3: &[u32] = &[0x101A];
 /// Settings added by version 4, the calibrated motor (appended after version 3's last stored
 /// row): a version-3 record is this version's without them.
 const ADDED_IN_V4: &[u32] = &[0x101B, 0x101C, 0x101D, 0x101E, 0x101F];
+/// Settings added by version 5, the lowest drive frequency the controller chooses.
+const ADDED_IN_V5: &[u32] = &[0x1022];
 
 /// Whether a record of format `version` (2 or later) holds setting `id`.
 fn in_version(id: u32, version: u16) -> bool {
-    !(version < 3 && ADDED_IN_V3.contains(&id) || version < 4 && ADDED_IN_V4.contains(&id))
+    !(version < 3 && ADDED_IN_V3.contains(&id)
+        || version < 4 && ADDED_IN_V4.contains(&id)
+        || version < 5 && ADDED_IN_V5.contains(&id))
 }
 
 const fn without(mut n: usize, added: &[u32]) -> usize {
@@ -143,9 +148,12 @@ const fn without(mut n: usize, added: &[u32]) -> usize {
     n
 }
 
-/// Payload bytes of format version 3 (the settings table before the calibrated motor).
+/// Payload bytes of format version 4 (the settings table before the lowest drive frequency).
+pub const V4_PAYLOAD_LEN: usize = 164;
+const _: () = assert!(without(PAYLOAD_LEN, ADDED_IN_V5) == V4_PAYLOAD_LEN);
+/// Payload bytes of format version 3 (before the calibrated motor).
 pub const V3_PAYLOAD_LEN: usize = 144;
-const _: () = assert!(without(PAYLOAD_LEN, ADDED_IN_V4) == V3_PAYLOAD_LEN);
+const _: () = assert!(without(V4_PAYLOAD_LEN, ADDED_IN_V4) == V3_PAYLOAD_LEN);
 /// Payload bytes of format version 2 (before the moving mass).
 pub const V2_PAYLOAD_LEN: usize = 140;
 const _: () = assert!(without(V3_PAYLOAD_LEN, ADDED_IN_V3) == V2_PAYLOAD_LEN);
@@ -296,7 +304,7 @@ pub fn validate(cfg: &ControllerConfig) -> Result<(), StorageError> {
     }
 }
 
-/// Reads a record (this [`VERSION`], or version 3, 2 or 1) from the start of `bytes` (extra bytes after
+/// Reads a record (this [`VERSION`], or version 4, 3, 2 or 1) from the start of `bytes` (extra bytes after
 /// it are ignored, so a whole flash page can be passed). Settings not in the record come from
 /// `defaults`.
 pub fn decode(bytes: &[u8], defaults: &ControllerConfig) -> Result<ControllerConfig, StorageError> {
@@ -308,6 +316,7 @@ pub fn decode(bytes: &[u8], defaults: &ControllerConfig) -> Result<ControllerCon
     let version = r.u16()?;
     let payload_len = match version {
         VERSION => PAYLOAD_LEN,
+        4 => V4_PAYLOAD_LEN,
         3 => V3_PAYLOAD_LEN,
         2 => V2_PAYLOAD_LEN,
         1 => V1_PAYLOAD_LEN,
@@ -324,7 +333,7 @@ pub fn decode(bytes: &[u8], defaults: &ControllerConfig) -> Result<ControllerCon
     }
     let mut cfg = *defaults;
     if version >= 2 {
-        // Versions 2 and 3 are this layout without the rows added since.
+        // Versions 2 to 4 are this layout without the rows added since.
         for s in SETTINGS.iter().filter(|s| s.stored && in_version(s.id, version)) {
             r.setting(s, &mut cfg)?;
         }

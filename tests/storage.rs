@@ -197,6 +197,7 @@ fn changed() -> piezo_drive::controller::ControllerConfig {
     c.normal_force_ratio = 0.6;
     c.rail_coulomb_n = 0.4;
     c.rail_viscous_n_s_per_m = 2.5;
+    c.drive_freq_min_hz = 900.0;
     c
 }
 
@@ -295,12 +296,12 @@ fn record(version: u16, values: &[V]) -> Vec<u8> {
     rec
 }
 
-/// The version-4 layout, written out by hand: every stored setting in table order, in its
-/// type's width. A change here is a new format version. Version 3 was the same without the
-/// calibrated motor at the end, version 2 also without the moving mass; such records still
-/// load, what they lack from the defaults.
+/// The version-5 layout, written out by hand: every stored setting in table order, in its
+/// type's width. A change here is a new format version. Version 4 was the same without the
+/// lowest drive frequency at the end, version 3 also without the calibrated motor, version 2
+/// also without the moving mass; such records still load, what they lack from the defaults.
 #[test]
-fn version_4_record_byte_for_byte_and_versions_3_and_2_still_load() {
+fn version_5_record_byte_for_byte_and_versions_4_3_and_2_still_load() {
     use V::*;
     let v2_fields = [
         F(55.5),       // 0x1 kp
@@ -348,17 +349,24 @@ fn version_4_record_byte_for_byte_and_versions_3_and_2_still_load() {
         F(0.4),  // 0x101E guide Coulomb friction (N)
         F(2.5),  // 0x101F guide viscous friction (N per m/s)
     ]);
-    let expected = record(4, &v4_fields);
-    assert_eq!(VERSION, 4);
-    assert_eq!(PAYLOAD_LEN, 164);
-    assert_eq!(RECORD_LEN, 176);
+    let mut v5_fields = v4_fields.clone();
+    v5_fields.push(F(900.0)); // 0x1022 lowest drive frequency (Hz)
+    let expected = record(5, &v5_fields);
+    assert_eq!(VERSION, 5);
+    assert_eq!(PAYLOAD_LEN, 168);
+    assert_eq!(RECORD_LEN, 180);
     assert_eq!(storage::encode(&changed()).to_vec(), expected);
     assert_eq!(storage::decode(&expected, &controller_config()), Ok(changed()));
-    // Version 3: everything but the calibrated motor, which comes from the defaults.
+    // Version 4: everything but the lowest drive frequency, which comes from the defaults.
     let d = controller_config();
+    let v4 = record(4, &v4_fields);
+    assert_eq!(v4.len(), 8 + 164 + 4);
+    let mut want = changed();
+    want.drive_freq_min_hz = d.drive_freq_min_hz;
+    assert_eq!(storage::decode(&v4, &d), Ok(want));
+    // Version 3: also the calibrated motor from the defaults.
     let v3 = record(3, &v3_fields);
     assert_eq!(v3.len(), 8 + 144 + 4);
-    let mut want = changed();
     (want.mu_dynamic, want.tangential_scale, want.normal_force_ratio) =
         (d.mu_dynamic, d.tangential_scale, d.normal_force_ratio);
     (want.rail_coulomb_n, want.rail_viscous_n_s_per_m) = (d.rail_coulomb_n, d.rail_viscous_n_s_per_m);
@@ -425,6 +433,7 @@ fn version_1_record_still_loads() {
     (expected.mu_dynamic, expected.tangential_scale, expected.normal_force_ratio) =
         (d.mu_dynamic, d.tangential_scale, d.normal_force_ratio);
     (expected.rail_coulomb_n, expected.rail_viscous_n_s_per_m) = (d.rail_coulomb_n, d.rail_viscous_n_s_per_m);
+    expected.drive_freq_min_hz = d.drive_freq_min_hz;
     assert_eq!(storage::decode(&v1, &d), Ok(expected));
     // As read from a flash page (erased bytes after it).
     let mut page = vec![0xFFu8; 2048];

@@ -196,11 +196,13 @@ fn run(cli: Cli) -> Result<()> {
                         }
                     }
                     None => println!(
-                        "settle time {}, final error {:.1} nm, overshoot {:.1} nm, max following error {:.3} µm",
+                        "settle time {}, final error {:.1} nm, overshoot {:.1} nm, max following error {:.3} µm, \
+                         drive frequency {:.0} Hz",
                         r.settle_time_s.map_or("never".into(), |t| format!("{t:.4} s")),
                         r.final_error_nm,
                         r.overshoot_nm,
-                        r.max_following_error_um
+                        r.max_following_error_um,
+                        r.drive_frequency_hz
                     ),
                 }
             }
@@ -363,18 +365,19 @@ fn run(cli: Cli) -> Result<()> {
                 println!("{}", serde_json::to_string_pretty(&rows)?);
             } else {
                 println!(
-                    "{:>9}  {:<26} {:>9} {:>11} {:>13} {:>9}  fault",
-                    "slider kg", "move", "settle s", "× limit", "overshoot nm", "max FE µm"
+                    "{:>9}  {:<26} {:>9} {:>11} {:>13} {:>9} {:>6}  fault",
+                    "slider kg", "move", "settle s", "× limit", "overshoot nm", "max FE µm", "f Hz"
                 );
                 for r in &rows {
                     println!(
-                        "{:>9}  {:<26} {:>9} {:>11} {:>13.1} {:>9.3}  {}",
+                        "{:>9}  {:<26} {:>9} {:>11} {:>13.1} {:>9.3} {:>6.0}  {}",
                         r.slider_mass_kg,
                         r.mv,
                         r.settle_time_s.map_or("-".into(), |t| format!("{t:.4}")),
                         r.limit_ratio.map_or("-".into(), |x| format!("{x:.2}")),
                         r.overshoot_nm,
                         r.max_following_error_um,
+                        r.drive_frequency_hz,
                         r.fault.as_deref().unwrap_or("-")
                     );
                 }

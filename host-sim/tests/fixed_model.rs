@@ -113,7 +113,7 @@ fn firmware_defaults_equal_the_simulated_board() {
 /// thrust between table voltages, the speed table, and the inverse, over the operating grid.
 #[test]
 fn model_table_within_1_percent_of_stall_of_the_f64_model() {
-    use piezo_drive::controller::model_cache::{ModelRequest, ModelTable};
+    use piezo_drive::controller::model_cache::{FrequencyChoice, ModelRequest, ModelTable};
     let p = Params::prototype();
     let k = motor_constants(&p);
     let (mut worst_thrust, mut worst_inverse, mut worst_speed) = (0.0f64, 0.0f64, 0.0f64);
@@ -125,6 +125,7 @@ fn model_table_within_1_percent_of_stall_of_the_f64_model() {
                 preload_n: preload_n as f32,
                 max_drive_v: 100.0,
                 frequency_hz: frequency_hz as f32,
+                choice: FrequencyChoice::fixed(frequency_hz as f32, per_volt, 0.0),
                 // Heavy enough for the constant-speed model (no orbits): the interpolation
                 // is what this test measures.
                 moving_mass_kg: 50.0,

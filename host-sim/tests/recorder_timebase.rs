@@ -63,7 +63,8 @@ fn recorded_settle_time_is_the_watched_one_on_the_record_grid() {
     let mut fresh = ready_board(&p, controller_config(&p), 16.0).unwrap();
     let r = run_move(&mut fresh, TARGET_NM, 2.0, 0.05);
     let t_move = r.settle_time_s.expect("host-sim move settles");
-    assert!((t_recorded - t_move).abs() <= period + 1e-12, "recorded {t_recorded} s, move {t_move} s");
+    // (1e-9 s: the simulator's clock sums 1e-4 s steps, a few ulps off the exact grid.)
+    assert!((t_recorded - t_move).abs() <= period + 1e-9, "recorded {t_recorded} s, move {t_move} s");
     println!(
         "settle: watched {t_watched:.4} s, recorded {t_recorded:.4} s, move {t_move:.4} s, period {period} s"
     );

@@ -60,6 +60,7 @@ const SET: &[(&str, &str, &str)] = &[
     ("0x101D", "0.6", "0.6"),
     ("0x101E", "0.4", "0.4"),
     ("0x101F", "2.5", "2.5"),
+    ("0x1022", "900", "900"),
 ];
 
 /// The read-only parameters (hardware facts, not stored) at the simulated board's values:
@@ -127,6 +128,7 @@ fn wpa_then_restart_brings_back_every_stored_parameter_and_nothing_else() {
     (c.reference_drive_v, c.reference_timeout_s, c.moving_mass_kg) = (40.0, 100.0, 0.45);
     (c.mu_dynamic, c.tangential_scale, c.normal_force_ratio) = (0.28, 0.19, 0.6);
     (c.rail_coulomb_n, c.rail_viscous_n_s_per_m) = (0.4, 2.5);
+    c.drive_freq_min_hz = 900.0;
     let record = std::fs::read(&store).expect("WPA wrote the store");
     assert_eq!(record, piezo_drive::storage::encode(&expected).to_vec());
 
@@ -143,6 +145,8 @@ fn wpa_then_restart_brings_back_every_stored_parameter_and_nothing_else() {
     let mut want: Vec<(String, String)> =
         SET.iter().map(|(id, _, shown)| (id.to_string(), shown.to_string())).collect();
     want.extend(READ_ONLY.iter().map(|(id, v)| (id.to_string(), v.to_string())));
+    // In the table's (id) order, as `SPA?` lists them.
+    want.sort_by_key(|(id, _)| u32::from_str_radix(id.trim_start_matches("0x"), 16).unwrap_or(u32::MAX));
     assert_eq!(after, want);
     for (id, v) in READ_ONLY {
         assert!(defaults.contains(&(id.to_string(), v.to_string())), "{id} default");

@@ -21,7 +21,8 @@ impl Controller {
         // change) only builds following error: past some lag the profile waits for the slider.
         let lag =
             (self.profile.position_nm() - self.position_nm()) as f32 * self.profile.velocity_nm_s().signum();
-        if lag > self.cfg.profile_wait_lag_nm {
+        let waiting = lag > self.cfg.profile_wait_lag_nm;
+        if waiting {
             v_max = v_max.min((self.speed_nm_s * self.profile.velocity_nm_s().signum()).max(0.0));
         }
         let v_before = self.profile.velocity_nm_s();
@@ -38,6 +39,12 @@ impl Controller {
         profile.step(dt_s, v_max, up, decel);
         self.profile = profile;
         self.accel_ref_nm_s2 = (self.profile.velocity_nm_s() - v_before) / self.dt_s;
+        if waiting && self.accel_ref_nm_s2 * v_before < 0.0 {
+            // A profile slowing down to wait for a lagging slider asks for no braking: fed
+            // forward as M·a it took the drive away from a slider that was already behind
+            // (5 kg against an unknown 2 N: 97 V fell to 33 V, and the slider slid back 0.8 µm).
+            self.accel_ref_nm_s2 = 0.0;
+        }
         if self.state() == State::Moving && self.profile.done() {
             self.enter_hold();
         }
@@ -92,14 +99,14 @@ impl Controller {
     pub(super) fn speed_limit_nm_s(&self) -> f32 {
         let Some(t) = self.model.table.as_ref() else { return 0.0 };
         let dir = if self.profile.target_nm() >= self.profile.position_nm() { 1.0 } else { -1.0 };
-        let load = (dir * self.thrust_bias_n).max(0.0);
+        let load = (dir * self.thrust_bias_n).max(-0.5 * t.stall_n());
         (t.speed_at_load_mm_s(load) * 1e6 * self.cfg.speed_fraction).min(self.cfg.velocity_max_nm_s)
     }
 
     /// Braking limit: the model's (below) within the user's deceleration limit, and spread over
     /// at least [`BRAKE_MIN_DRIVE_PERIODS`] drive periods from the profile's top speed.
     pub(super) fn accel_limit_nm_s2(&self) -> f32 {
-        let spread = self.speed_limit_nm_s() * self.cfg.drive_freq_hz / BRAKE_MIN_DRIVE_PERIODS;
+        let spread = self.speed_limit_nm_s() * self.coarse_frequency_hz() / BRAKE_MIN_DRIVE_PERIODS;
         self.model_brake_nm_s2().min(self.cfg.decel_max_nm_s2).min(spread.max(MIN_BRAKE_NM_S2))
     }
 

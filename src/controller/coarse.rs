@@ -34,6 +34,10 @@ impl Controller {
                 // Sliding back under drive means the load is far above the estimate: learn faster.
                 let gain = if backslide { 0.02 } else { 0.005 };
                 self.observed_bias_n += gain * (sample - self.observed_bias_n);
+                // What the integral built while the slider lagged is the load the observer is
+                // learning now: hand it over at the observer's rate, or both push and the
+                // slider runs ahead.
+                self.integral_n -= gain * self.integral_n;
             }
             // The integral on the position error corrects what the model gets wrong.
             self.integral_n =
@@ -70,7 +74,7 @@ impl Controller {
         self.fine_offset_v -= clamp_sym_f32(self.fine_offset_v, recentre);
         self.generator.ramp_static_offsets_v([self.fine_offset_v; 2], DAC_SAMPLES_PER_STEP as u32);
         self.generator.set_direction(dir);
-        self.generator.set_frequency_hz(self.cfg.drive_freq_hz);
+        self.generator.set_frequency_hz(self.coarse_frequency_hz());
         self.generator.set_amplitude_v(volts);
     }
 }

@@ -18,7 +18,7 @@ pub struct ControllerConfig {
     /// Usable preload window (N): below it contact is unreliable, above it the motor blocks.
     pub preload_min_n: f32,
     pub preload_max_n: f32,
-    /// Drive frequency for coarse motion (Hz).
+    /// Highest drive frequency for coarse motion (Hz).
     pub drive_freq_hz: f32,
     /// Largest peak-to-peak drive voltage the controller commands.
     pub max_drive_v: f32,
@@ -76,6 +76,11 @@ pub struct ControllerConfig {
     /// the slider's motion. The model table takes it off the foot's thrust.
     pub rail_coulomb_n: f32,
     pub rail_viscous_n_s_per_m: f32,
+    /// Lowest drive frequency the controller chooses (Hz): it drives, between this and
+    /// [`Self::drive_freq_hz`], where its model with the moving mass gives the highest speed
+    /// against the expected load ([`crate::controller::model_cache`]). At or above
+    /// `drive_freq_hz` the frequency is fixed there.
+    pub drive_freq_min_hz: f32,
 }
 
 /// How far a calibrated λ or ρ may stray from the motor table's: a factor of 4 either way. Beyond
@@ -102,8 +107,13 @@ impl ControllerConfig {
     /// `kc·Yc` scaled by the ρ ratio, `ω·Xc` by the λ ratio (both linear, eqs. 1, 3 and 7; the
     /// table's interpolation commutes with the scaling), μ the calibrated one.
     pub fn per_volt(&self) -> PerVolt {
+        self.per_volt_at(self.drive_freq_hz)
+    }
+
+    /// [`Self::per_volt`] at another drive frequency (Hz).
+    pub fn per_volt_at(&self, frequency_hz: f32) -> PerVolt {
         let (tangential, normal) = self.calibration_ratios();
-        let p = self.motor.at_frequency(fx_from_f32(self.drive_freq_hz / 1000.0));
+        let p = self.motor.at_frequency(fx_from_f32(frequency_hz / 1000.0));
         let scale = |x: Fx, r: f32| fx_from_f32(x.to_num::<f32>() * r);
         PerVolt {
             kc_yc_n_per_v: scale(p.kc_yc_n_per_v, normal),
@@ -132,6 +142,8 @@ pub fn validate_settings(c: &ControllerConfig) -> Result<(), CommandError> {
     let ok = crate::settings::each_in_range(c)
         && c.drive_freq_hz >= d.min_freq_hz
         && c.drive_freq_hz <= d.max_freq_hz
+        && c.drive_freq_min_hz >= d.min_freq_hz
+        && c.drive_freq_min_hz <= d.max_freq_hz
         && c.max_drive_v <= d.max_v - d.min_v
         && c.reference_drive_v <= c.max_drive_v
         && c.preload_min_n < c.preload_max_n

@@ -25,7 +25,7 @@
 //! takes it if it still answers the controller's configuration. Until the first table is in, the
 //! profile has no speed to move at (as without a preload reading).
 
-use super::{Controller, ControllerConfig};
+use super::{Controller, ControllerConfig, State};
 use crate::fastmath::{acos_f32, clamp_f32, fx_from_f32};
 use crate::inertia::Orbits;
 use crate::model::PerVolt;
@@ -47,16 +47,76 @@ pub const PRELOAD_RESOLVE_N: f32 = 0.02;
 /// does not move and φp is undefined (the limit the row stands for).
 const ROW0_SHARE: f32 = 0.05;
 
+/// Most drive frequencies a request offers the table build to choose from.
+pub const FREQ_CANDIDATES: usize = 12;
+
+/// Candidate spacing at least (Hz): the motor table's own frequency step.
+const FREQ_CANDIDATE_STEP_HZ: f32 = 100.0;
+
+/// A chosen frequency is kept while the load along the move stays within this share of the
+/// stall force of the load it was chosen for (a new choice costs a dozen model evaluations off
+/// the tick, and an observer learning an unknown load should not ask for one every few ms).
+const RECHOOSE_LOAD_SHARE: f32 = 0.2;
+
+/// The drive frequencies a table may be built at, with the per-volt amplitudes at each: the build
+/// drives where the model with the carriage's mass gives the highest speed at full drive against
+/// `load_n` ([`ModelRequest::chosen`]). A light carriage rides the foot and runs faster at a lower
+/// frequency (0.05 kg: 0.41 mm/s at 1.2 kHz against 0.23 at 2.2 kHz, the plant 0.41 and 0.27); a
+/// heavy load near the top frequency's stall force moves faster where the contact force is larger.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrequencyChoice {
+    pub frequency_hz: [f32; FREQ_CANDIDATES],
+    pub per_volt: [PerVolt; FREQ_CANDIDATES],
+    /// Candidates in use (1: the frequency is given).
+    pub len: usize,
+    /// Opposing load the choice is for (N).
+    pub load_n: f32,
+}
+
+impl FrequencyChoice {
+    /// Only `frequency_hz`, for `load_n`.
+    pub fn fixed(frequency_hz: f32, per_volt: PerVolt, load_n: f32) -> Self {
+        FrequencyChoice {
+            frequency_hz: [frequency_hz; FREQ_CANDIDATES],
+            per_volt: [per_volt; FREQ_CANDIDATES],
+            len: 1,
+            load_n,
+        }
+    }
+
+    /// From `highest_hz` down to `lowest_hz` in steps of at least 100 Hz (at most
+    /// [`FREQ_CANDIDATES`]); `per_volt(f)` gives the amplitudes at `f`.
+    pub fn between(lowest_hz: f32, highest_hz: f32, load_n: f32, per_volt: impl Fn(f32) -> PerVolt) -> Self {
+        let mut c = Self::fixed(highest_hz, per_volt(highest_hz), load_n);
+        let span = (highest_hz - lowest_hz).max(0.0);
+        let step = FREQ_CANDIDATE_STEP_HZ.max(span / (FREQ_CANDIDATES - 1) as f32);
+        for k in 1..FREQ_CANDIDATES {
+            let f = highest_hz - step * k as f32;
+            if f < lowest_hz - 1e-3 {
+                break;
+            }
+            if let (Some(slot_f), Some(slot_p)) = (c.frequency_hz.get_mut(k), c.per_volt.get_mut(k)) {
+                (*slot_f, *slot_p) = (f, per_volt(f));
+                c.len = k + 1;
+            }
+        }
+        c
+    }
+}
+
 /// What a table is built from.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ModelRequest {
+    /// The amplitudes per volt at `frequency_hz`.
     pub per_volt: PerVolt,
     pub preload_n: f32,
     pub max_drive_v: f32,
     /// Drive frequency (Hz) and the carriage's moving mass (kg): a light carriage's speed
     /// ripples within a period, and the table then comes from its periodic motion
-    /// ([`crate::inertia`]).
+    /// ([`crate::inertia`]). With more than one candidate in `choice`, the build chooses the
+    /// frequency and the table's own request holds the one chosen.
     pub frequency_hz: f32,
+    pub choice: FrequencyChoice,
     pub moving_mass_kg: f32,
     /// Guide friction of the carriage, opposing its motion (Coulomb N, viscous N·s/m): the table
     /// holds the foot's thrust net of it.
@@ -189,6 +249,39 @@ fn thrust_at_zero_speed(row: &[f32; PHASE_POINTS]) -> f32 {
     row.get((PHASE_POINTS - 1) / 2).copied().unwrap_or(0.0)
 }
 
+impl ModelRequest {
+    /// This request at the candidate frequency where the model gives the highest speed at full
+    /// drive against the choice's load (the carriage's periodic motion where its speed ripples,
+    /// eq. 19 otherwise; net of the guide's friction); itself when there is no choice. Ties go
+    /// to the higher frequency.
+    pub fn chosen(&self) -> ModelRequest {
+        let c = &self.choice;
+        if c.len <= 1 {
+            return *self;
+        }
+        let preload = fx_from_f32(self.preload_n);
+        let top = fx_from_f32(self.max_drive_v.max(0.0));
+        let mut best = (f32::NEG_INFINITY, *self);
+        for (&f, pv) in c.frequency_hz.iter().zip(c.per_volt.iter()).take(c.len) {
+            let full = pv.point(preload, top);
+            let orbits = Orbits::new(&full, f, self.moving_mass_kg);
+            let speed = with_guide_friction(self, c.load_n.max(0.0), |foot_load| {
+                if orbits.inertia_matters() {
+                    orbits.mean_speed_mm_s(foot_load).unwrap_or(0.0)
+                } else {
+                    full.speed_at_load_near(fx_from_f32(foot_load), f32::NAN).to_num()
+                }
+            });
+            if speed > best.0 {
+                best = (speed, ModelRequest { per_volt: *pv, frequency_hz: f, ..*self });
+            }
+        }
+        let mut chosen = best.1;
+        chosen.choice = FrequencyChoice::fixed(chosen.frequency_hz, chosen.per_volt, c.load_n);
+        chosen
+    }
+}
+
 impl ModelTable {
     /// The expensive part: [`VOLT_POINTS`] model points, the thrust at every grid node and
     /// [`LOAD_POINTS`] speed roots or, for a carriage whose speed ripples, periodic orbits (a few
@@ -196,6 +289,7 @@ impl ModelTable {
     /// default; more for a carriage that rides the foot, whose whole grid comes from orbits), for
     /// a lower-priority context.
     pub fn build(request: &ModelRequest) -> Self {
+        let request = &request.chosen();
         let top = request.max_drive_v.max(0.0);
         let preload = fx_from_f32(request.preload_n);
         let step_v = top / (VOLT_POINTS - 1) as f32;
@@ -290,8 +384,13 @@ impl ModelTable {
         if stalled {
             return 0.0;
         }
-        let (k, t) = cell(load_n / self.stall_n * (LOAD_POINTS - 1) as f32, LOAD_POINTS - 1);
+        let x = load_n / self.stall_n * (LOAD_POINTS - 1) as f32;
+        let (k, t) = cell(x, LOAD_POINTS - 1);
         let a = self.speed_mm_s.get(k).copied().unwrap_or(0.0);
+        if x < 0.0 {
+            let b = self.speed_mm_s.get(1).copied().unwrap_or(0.0);
+            return a + (a - b) * -x;
+        }
         let b = self.speed_mm_s.get(k + 1).copied().unwrap_or(0.0);
         a + (b - a) * t
     }
@@ -457,6 +556,12 @@ impl Controller {
         self.model.table.as_ref().filter(|t| (preload_n - t.request().preload_n).abs() <= PRELOAD_RESOLVE_N)
     }
 
+    /// The drive frequency of coarse motion (Hz): the installed table's (chosen with it), the
+    /// highest allowed before there is one.
+    pub fn coarse_frequency_hz(&self) -> f32 {
+        self.model.table.as_ref().map_or(self.cfg.drive_freq_hz, |t| t.request().frequency_hz)
+    }
+
     /// The cached limits for the control path: (stall N, no-load mm/s), None before a table.
     pub(super) fn cached_limits(&self) -> Option<(f32, f32)> {
         self.model.table.as_ref().map(|t| (t.stall_n(), t.no_load_mm_s()))
@@ -467,14 +572,38 @@ impl Controller {
     /// Cheap: a board calls it under its lock, builds the table outside, then installs it.
     pub fn model_request(&self) -> Option<ModelRequest> {
         let preload_n = self.preload_n()?;
-        if self.fitting_table(preload_n).is_some() {
-            return None;
-        }
+        // The frequency is chosen for the load the motor pushes against: along the move while
+        // moving, either way otherwise. It is chosen anew when there is no table or, while
+        // moving, when that load has moved away from the one it was chosen for (the observer
+        // learned an unknown load, or the move goes the other way); else a table for a new
+        // preload keeps it. A table built during a move takes over within it: the generator
+        // changes frequency without a phase jump.
+        let moving = self.state() == State::Moving;
+        let load_n = if moving {
+            // The move's sense, not the side of the target the slider is on: an overshoot at
+            // the end of a move must not flip the choice.
+            let dir = if self.last_sense == Some(1) { -1.0 } else { 1.0 };
+            (dir * self.thrust_bias_n).max(0.0)
+        } else {
+            self.thrust_bias_n.abs()
+        };
+        let kept = self.model.table.as_ref().filter(|t| {
+            !moving || (load_n - t.request().choice.load_n).abs() <= RECHOOSE_LOAD_SHARE * t.stall_n()
+        });
+        let choice = match kept {
+            Some(t) if (preload_n - t.request().preload_n).abs() <= PRELOAD_RESOLVE_N => return None,
+            Some(t) => t.request().choice,
+            None => {
+                let (lowest, highest) = (self.cfg.drive_freq_min_hz, self.cfg.drive_freq_hz);
+                FrequencyChoice::between(lowest, highest, load_n, |f| self.cfg.per_volt_at(f))
+            }
+        };
         Some(ModelRequest {
-            per_volt: self.model.per_volt,
+            per_volt: choice.per_volt[0],
             preload_n,
             max_drive_v: self.cfg.max_drive_v,
-            frequency_hz: self.cfg.drive_freq_hz,
+            frequency_hz: choice.frequency_hz[0],
+            choice,
             moving_mass_kg: self.cfg.moving_mass_kg,
             rail_coulomb_n: self.cfg.rail_coulomb_n,
             rail_viscous_n_s_per_m: self.cfg.rail_viscous_n_s_per_m,
@@ -486,10 +615,11 @@ impl Controller {
     /// configuration changed since the request.
     pub fn install_model(&mut self, table: ModelTable) -> bool {
         let r = table.request();
+        let lowest = self.cfg.drive_freq_min_hz.min(self.cfg.drive_freq_hz);
         let current = r.generation == self.model.generation
-            && r.per_volt == self.model.per_volt
+            && r.per_volt == self.cfg.per_volt_at(r.frequency_hz)
             && r.max_drive_v == self.cfg.max_drive_v
-            && r.frequency_hz == self.cfg.drive_freq_hz
+            && (lowest..=self.cfg.drive_freq_hz).contains(&r.frequency_hz)
             && r.moving_mass_kg == self.cfg.moving_mass_kg
             && r.rail_coulomb_n == self.cfg.rail_coulomb_n
             && r.rail_viscous_n_s_per_m == self.cfg.rail_viscous_n_s_per_m;

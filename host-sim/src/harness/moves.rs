@@ -37,6 +37,8 @@ pub struct MoveResult {
     pub slide_back_nm: Option<f64>,
     #[serde(serialize_with = "ser::um")]
     pub max_following_error_um: f64,
+    /// Drive frequency of coarse motion the controller chose (Hz), at the end of the move.
+    pub drive_frequency_hz: f64,
     /// Fault code and text, null when none.
     pub fault: Option<FaultReport>,
     #[serde(skip)]
@@ -82,6 +84,7 @@ pub fn run_move(sil: &mut Sil, to_nm: i64, max_s: f64, hold_s: f64) -> MoveResul
         overshoot_nm: 0.0,
         slide_back_nm: None,
         max_following_error_um: 0.0,
+        drive_frequency_hz: f64::from(sil.controller.coarse_frequency_hz()),
         fault: None,
         trace: Vec::new(),
     };
@@ -134,6 +137,7 @@ pub fn run_move(sil: &mut Sil, to_nm: i64, max_s: f64, hold_s: f64) -> MoveResul
         }
     }
     result.settle_time_s = inside_since;
+    result.drive_frequency_hz = f64::from(sil.controller.coarse_frequency_hz());
     result.final_error_nm = sil.plant.slider_position_m() * 1e9 - to_nm as f64;
     result
 }

@@ -38,6 +38,8 @@ pub struct SweepRow {
     pub limit_ratio: Option<f64>,
     pub overshoot_nm: f64,
     pub max_following_error_um: f64,
+    /// The drive frequency the controller chose (Hz).
+    pub drive_frequency_hz: f64,
     pub fault: Option<String>,
 }
 
@@ -102,6 +104,7 @@ pub fn run(p: &Params, progress: impl Fn(usize, usize) + Sync) -> anyhow::Result
                 limit_ratio,
                 overshoot_nm: r.overshoot_nm,
                 max_following_error_um: r.max_following_error_um,
+                drive_frequency_hz: r.drive_frequency_hz,
                 fault: r.fault.map(|f| f.text.to_string()),
             })
         })

@@ -3,7 +3,7 @@
 //! attached (`tools/pil/run`).
 
 use cortex_m_semihosting::hprintln;
-use piezo_drive::controller::model_cache::{ModelRequest, ModelTable};
+use piezo_drive::controller::model_cache::{FrequencyChoice, ModelRequest, ModelTable};
 use piezo_drive::controller::{Controller, Inputs, DAC_SAMPLES_PER_STEP};
 use piezo_drive::defaults::controller_config;
 use piezo_drive::gcs::{Board, Gcs, LoopStats, Pending, Reply};
@@ -173,6 +173,7 @@ pub fn hot_paths() {
         preload_n: 16.0,
         max_drive_v: 100.0,
         frequency_hz: 2200.0,
+        choice: FrequencyChoice::fixed(2200.0, pv, 0.0),
         moving_mass_kg: 1.0,
         rail_coulomb_n: 0.0,
         rail_viscous_n_s_per_m: 0.0,
@@ -184,6 +185,20 @@ pub fn hot_paths() {
         build.add(counts(|| table = core::hint::black_box(ModelTable::build(core::hint::black_box(&request)))));
     }
     build.print("ModelTable::build (thread mode on the board)", k);
+    // The same with the drive frequency chosen from 1.2 to 2.2 kHz (a new table for new settings
+    // or a new load; one for a new preload keeps the frequency).
+    let khz = |f: f32| Fx::from_num(f / 1000.0);
+    let choosing = ModelRequest {
+        choice: FrequencyChoice::between(1200.0, 2200.0, 0.0, |f| m.at_frequency(khz(f))),
+        ..request
+    };
+    let mut build_choice = Stat::new();
+    for _ in 0..3 {
+        build_choice.add(counts(|| {
+            core::hint::black_box(ModelTable::build(core::hint::black_box(&choosing)));
+        }));
+    }
+    build_choice.print("ModelTable::build, frequency chosen from 1.2-2.2 kHz", k);
     let (mut t_inv, mut t_thrust, mut t_speed) = (Stat::new(), Stat::new(), Stat::new());
     let mut hint_v = 50.0f32;
     for i in 0..2000i32 {
