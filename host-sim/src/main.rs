@@ -365,14 +365,15 @@ fn run(cli: Cli) -> Result<()> {
                 println!("{}", serde_json::to_string_pretty(&rows)?);
             } else {
                 println!(
-                    "{:>9}  {:<26} {:>9} {:>11} {:>13} {:>9} {:>6}  fault",
-                    "slider kg", "move", "settle s", "× limit", "overshoot nm", "max FE µm", "f Hz"
+                    "{:>9}  {:<26} {:>6} {:>9} {:>8} {:>13} {:>9} {:>6}  fault",
+                    "slider kg", "move", "load N", "settle s", "× limit", "overshoot nm", "max FE µm", "f Hz"
                 );
                 for r in &rows {
                     println!(
-                        "{:>9}  {:<26} {:>9} {:>11} {:>13.1} {:>9.3} {:>6.0}  {}",
+                        "{:>9}  {:<26} {:>6.2} {:>9} {:>8} {:>13.1} {:>9.3} {:>6.0}  {}",
                         r.slider_mass_kg,
                         r.mv,
+                        r.load_n,
                         r.settle_time_s.map_or("-".into(), |t| format!("{t:.4}")),
                         r.limit_ratio.map_or("-".into(), |x| format!("{x:.2}")),
                         r.overshoot_nm,

@@ -148,25 +148,32 @@ fn feedforward_halves_the_peak_following_error_against_a_2_n_load() {
 }
 
 /// The controller knows the moving mass only as a parameter (`SPA 1 0x101A`): told half or
-/// twice the truth, the 1 mm move on the default carriage still settles within one count with
-/// no fault. Told twice the mass it overshoots under 200 nm (27.8 nm measured); told half, the
-/// model table treats the carriage as one that rides the foot (orbit grid, see
-/// `model_cache::RIDING_SHARE`), that model runs slow against the plant and over-drives the
-/// stop: 454 nm measured, held as a regression bound (issue 11 is open).
+/// twice the truth, the 1 mm move on every carriage of the sweep still settles within one count,
+/// with no fault, within twice that plant's physical limit. Told twice the mass the default
+/// carriage overshoots under 200 nm (15.8 nm measured). Told half, the profile brakes harder than
+/// the carriage can and overshoots (measured: 0.1 kg 170 nm, 0.3 kg 1.9 µm, 1 kg 225 nm, 5 kg
+/// 0.9 µm, 50 kg 8.3 µm; issue 11 is open on this).
 #[test]
 fn a_moving_mass_parameter_off_by_two_either_way_still_settles() {
-    let p = Params::prototype();
-    for factor in [2.0f32, 0.5] {
-        let mut cfg = controller_config(&p);
-        cfg.moving_mass_kg *= factor;
-        let mut sil = ready_board(&p, cfg, 16.0).unwrap();
-        let r = run_move(&mut sil, 1_000_000, 3.0, 0.05);
-        eprintln!("mass × {factor}: settle {:?} s, overshoot {:.1} nm", r.settle_time_s, r.overshoot_nm);
-        assert!(r.fault.is_none(), "mass × {factor}: {:?}", r.fault);
-        assert!(r.settle_time_s.is_some(), "mass × {factor}: not settled");
-        let bound = if factor < 1.0 { 600.0 } else { 200.0 };
-        assert!(r.overshoot_nm < bound, "mass × {factor}: overshoot {} nm", r.overshoot_nm);
-        assert!(r.final_error_nm.abs() <= 50.0);
+    for mass_kg in host_sim::harness::sweep::MASSES_KG {
+        let mut p = Params::prototype();
+        p.slider.mass_kg = mass_kg;
+        let limit_s = physical_limit_s(&p, 1e-3);
+        for factor in [2.0f32, 0.5] {
+            let mut cfg = controller_config(&p);
+            cfg.moving_mass_kg *= factor;
+            let mut sil = ready_board(&p, cfg, 16.0).unwrap();
+            let r = run_move(&mut sil, 1_000_000, 3.0 * limit_s, 0.05);
+            let case = format!("{mass_kg} kg told × {factor}");
+            eprintln!("{case}: settle {:?} s, overshoot {:.1} nm", r.settle_time_s, r.overshoot_nm);
+            assert!(r.fault.is_none(), "{case}: {:?}", r.fault);
+            let t = r.settle_time_s.unwrap_or(f64::INFINITY);
+            assert!(t <= 2.0 * limit_s, "{case}: settled in {t} s, limit {limit_s:.3} s");
+            assert!(r.final_error_nm.abs() <= 50.0, "{case}: {} nm", r.final_error_nm);
+            if mass_kg == 1.0 && factor > 1.0 {
+                assert!(r.overshoot_nm < 200.0, "{case}: overshoot {} nm", r.overshoot_nm);
+            }
+        }
     }
 }
 
@@ -317,4 +324,32 @@ fn against_an_unknown_load_above_the_top_frequencys_stall_the_drive_moves_to_one
     assert!(f < 2200.0 && plant_at(f) > 0.1e-3, "drove at {f} Hz: plant {:.3} mm/s", plant_at(f) * 1e3);
     let back = run_move(&mut sil, 0, 8.0, 0.05);
     assert!(back.fault.is_none() && back.drive_frequency_hz == 2200.0, "{back:?}");
+}
+
+/// Issue 11: loads up to 70 % of the plant's stall force, not told to the controller. The load is
+/// 70 % of the highest stall force each plant has over 0.5–2.2 kHz (measured on the plant,
+/// `sweep::plant_stall_n`): 0.63 / 2.50 / 2.95 / 3.58 / 3.37 N for 0.1 / 0.3 / 1 / 5 / 50 kg.
+/// Every carriage settles with no fault; the light ones within 200 nm of overshoot (measured 3 /
+/// 95 / 180 nm). The 5 and 50 kg carriages drive at 1.2 kHz there (their stall at 2.2 kHz is 3.9 N)
+/// and overshoot 291 and 556 nm at the end of the braking, where the model is 7 % off the plant
+/// (held as a regression bound of 1 µm; issue 11 is open on it).
+#[test]
+fn unknown_loads_at_70_percent_of_each_plants_stall_settle_without_a_fault() {
+    for mass_kg in host_sim::harness::sweep::MASSES_KG {
+        let mut p = Params::prototype();
+        p.slider.mass_kg = mass_kg;
+        let (stall_n, _) = host_sim::harness::sweep::plant_stall_n(&p);
+        let load_n = 0.7 * stall_n;
+        let mut sil = ready_board(&p, controller_config(&p), 16.0).unwrap();
+        sil.set_load(ExternalLoad::opposing(load_n, 1));
+        let r = run_move(&mut sil, 1_000_000, 10.0, 0.05);
+        let case = format!("{mass_kg} kg against {load_n:.2} N");
+        eprintln!(
+            "{case}: settle {:?} s, overshoot {:.1} nm, {} Hz",
+            r.settle_time_s, r.overshoot_nm, r.drive_frequency_hz
+        );
+        assert!(r.fault.is_none() && r.settle_time_s.is_some(), "{case}: {r:?}");
+        let bound = if mass_kg <= 1.0 { 200.0 } else { 1000.0 };
+        assert!(r.overshoot_nm < bound, "{case}: overshoot {:.1} nm", r.overshoot_nm);
+    }
 }

@@ -5,7 +5,9 @@
 //! The physical limit of a 1 mm move is measured on the time-domain plant, not taken from the
 //! model: the highest no-load speed the plant reaches at 100 V over 0.5–2.2 kHz (in 100 Hz
 //! steps), plus the time to reach it at the stall thrust (`M·v/F_stall`, the steady-state
-//! model's stall: the speed-up is under 1 % of a 1 mm move for every carriage here).
+//! model's stall: the speed-up is under 1 % of a 1 mm move for every carriage here). So is the
+//! load of the "70 % of stall" move: 70 % of the highest stall force the plant has over the same
+//! band ([`plant_stall_n`]).
 
 use crate::harness::moves::{ready_board, run_move, MoveResult};
 use crate::harness::sil::controller_config;
@@ -18,21 +20,32 @@ use serde::Serialize;
 /// Slider masses of the sweep besides the file's own carriage (kg).
 pub const MASSES_KG: [f64; 5] = [0.1, 0.3, 1.0, 5.0, 50.0];
 
-/// The moves of the sweep: (label, target µm, opposing load N, load told to the controller,
+/// Opposing load of a move of the sweep.
+#[derive(Clone, Copy)]
+enum Load {
+    Newton(f64),
+    /// This share of the plant's highest stall force over the band ([`plant_stall_n`]).
+    StallShare(f64),
+}
+
+/// The moves of the sweep: (label, target µm, opposing load, load told to the controller,
 /// feedforward on).
-const MOVES: [(&str, f64, f64, bool, bool); 6] = [
-    ("1 mm", 1000.0, 0.0, false, true),
-    ("100 nm step", 0.1, 0.0, false, true),
-    ("1 µm step", 1.0, 0.0, false, true),
-    ("10 µm step", 10.0, 0.0, false, true),
-    ("1 mm, 2 N unknown", 1000.0, 2.0, false, true),
-    ("1 mm, 2 N known, plain PI", 1000.0, 2.0, true, false),
+const MOVES: [(&str, f64, Load, bool, bool); 7] = [
+    ("1 mm", 1000.0, Load::Newton(0.0), false, true),
+    ("100 nm step", 0.1, Load::Newton(0.0), false, true),
+    ("1 µm step", 1.0, Load::Newton(0.0), false, true),
+    ("10 µm step", 10.0, Load::Newton(0.0), false, true),
+    ("1 mm, 2 N unknown", 1000.0, Load::Newton(2.0), false, true),
+    ("1 mm, 70 % stall unknown", 1000.0, Load::StallShare(0.7), false, true),
+    ("1 mm, 2 N known, plain PI", 1000.0, Load::Newton(2.0), true, false),
 ];
 
 #[derive(Debug, Clone, Serialize)]
 pub struct SweepRow {
     pub slider_mass_kg: f64,
     pub mv: String,
+    /// Opposing load of the move (N).
+    pub load_n: f64,
     pub settle_time_s: Option<f64>,
     /// Settle time over the plant's physical limit (1 mm moves without load only).
     pub limit_ratio: Option<f64>,
@@ -59,6 +72,41 @@ pub fn physical_limit_s(p: &Params, distance_m: f64) -> (f64, f64) {
     (distance_m / best_v.max(1e-9) + speed_up_s, best_f)
 }
 
+/// A frequency at which the plant runs slower than this unloaded has no stall force worth the
+/// name (m/s).
+const MOVING_M_S: f64 = 50e-6;
+
+/// The highest stall force the time-domain plant has at 16 N and 100 V over 0.5–2.2 kHz (in
+/// 100 Hz steps; N), and where (Hz): at each frequency where it moves unloaded, the load at
+/// which its steady speed falls to zero, bisected to 0.01 N.
+pub fn plant_stall_n(p: &Params) -> (f64, f64) {
+    let stall_at = |f: f64| {
+        let (mut lo, mut hi) = (0.0f64, 2.0 * p.friction.mu_dynamic * 16.0);
+        // Where the motor hardly moves unloaded (0.5 kHz for light carriages) the speed is
+        // noise about zero, and a bisection on its sign finds nothing real.
+        if steady_speed_m_s(p, 16.0, 100.0, f, 1, lo) < MOVING_M_S {
+            return 0.0;
+        }
+        while hi - lo > 0.01 {
+            let mid = 0.5 * (lo + hi);
+            if steady_speed_m_s(p, 16.0, 100.0, f, 1, mid) > 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        lo
+    };
+    let freqs: Vec<f64> = (5..=22).map(|k| 100.0 * f64::from(k)).collect();
+    freqs.par_iter().map(|&f| (stall_at(f), f)).collect::<Vec<_>>().into_iter().fold((0.0, 0.0), |a, b| {
+        if b.0 > a.0 {
+            b
+        } else {
+            a
+        }
+    })
+}
+
 fn one(p: &Params, to_um: f64, load_n: f64, known: bool, feedforward: bool) -> anyhow::Result<MoveResult> {
     let mut cfg = controller_config(p);
     cfg.feedforward = feedforward;
@@ -75,14 +123,14 @@ fn one(p: &Params, to_um: f64, load_n: f64, known: bool, feedforward: bool) -> a
 pub fn run(p: &Params, progress: impl Fn(usize, usize) + Sync) -> anyhow::Result<Vec<SweepRow>> {
     let mut masses = vec![p.slider.mass_kg];
     masses.extend(MASSES_KG.iter().copied().filter(|&m| (m - p.slider.mass_kg).abs() > 1e-12));
-    let limits: Vec<f64> = masses
+    let (limits, stalls): (Vec<f64>, Vec<f64>) = masses
         .iter()
         .map(|&m| {
             let mut q = p.clone();
             q.slider.mass_kg = m;
-            physical_limit_s(&q, 1e-3).0
+            (physical_limit_s(&q, 1e-3).0, plant_stall_n(&q).0)
         })
-        .collect();
+        .unzip();
     let cases: Vec<(usize, usize)> =
         (0..masses.len()).flat_map(|i| (0..MOVES.len()).map(move |j| (i, j))).collect();
     let done = std::sync::atomic::AtomicUsize::new(0);
@@ -90,7 +138,12 @@ pub fn run(p: &Params, progress: impl Fn(usize, usize) + Sync) -> anyhow::Result
     cases
         .par_iter()
         .map(|&(i, j)| {
-            let (label, to_um, load_n, known, ff) = MOVES[j];
+            let (label, to_um, load, known, ff) = MOVES[j];
+            let load_n = match load {
+                Load::Newton(n) => n,
+                // Rounded to 0.01 N, as printed.
+                Load::StallShare(share) => (share * stalls[i] * 100.0).round() / 100.0,
+            };
             let mut q = p.clone();
             q.slider.mass_kg = masses[i];
             let r = one(&q, to_um, load_n, known, ff)?;
@@ -100,6 +153,7 @@ pub fn run(p: &Params, progress: impl Fn(usize, usize) + Sync) -> anyhow::Result
             Ok(SweepRow {
                 slider_mass_kg: masses[i],
                 mv: label.to_string(),
+                load_n,
                 settle_time_s: r.settle_time_s,
                 limit_ratio,
                 overshoot_nm: r.overshoot_nm,
