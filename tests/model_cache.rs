@@ -26,13 +26,14 @@ fn a_table_is_asked_for_until_one_fits_the_measured_preload() {
     assert!((request.preload_n - preload).abs() < 1e-6);
     assert!(ctl.install_model(ModelTable::build(&request)));
     assert!(ctl.model_request().is_none(), "the installed table fits");
-    // 5 words ≈ 0.061 N: more than the 0.02 N the table may be off by. The filter (α = 0.01)
-    // needs a few periods to move that far.
-    for _ in 0..200 {
-        ctl.step(&Inputs { preload_word: WORD_16_N + 5, ..Default::default() });
+    // 10 words ≈ 0.12 N: more than the 0.05 N the table may be off by. The filter (α = 0.01)
+    // needs a few hundred periods to move that far.
+    for _ in 0..400 {
+        ctl.step(&Inputs { preload_word: WORD_16_N + 10, ..Default::default() });
     }
     let moved = ctl.preload_n().unwrap();
-    assert!(moved - preload > 0.02, "preload moved {} N", moved - preload);
+    let resolve = piezo_drive::controller::model_cache::PRELOAD_RESOLVE_N;
+    assert!(moved - preload > resolve, "preload moved {} N", moved - preload);
     let again = ctl.model_request().expect("a new table for the new preload");
     assert!((again.preload_n - moved).abs() < 1e-6);
 }

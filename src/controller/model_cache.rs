@@ -39,9 +39,12 @@ pub const PHASE_POINTS: usize = 33;
 /// Loads of the speed table, evenly spaced from 0 to the stall force at full drive.
 pub const LOAD_POINTS: usize = 17;
 
-/// Preload change (N) that asks for a new table: the model's limits change by well under 1 %
-/// over it, and the force cell's filtered noise stays below it.
-pub const PRELOAD_RESOLVE_N: f32 = 0.02;
+/// Preload change (N) that asks for a new table: the model's limits change by under 0.5 % over
+/// it (the stall force is about μ·F0, 16 N at the prototype's working point). At 0.02 N the force
+/// cell's filtered noise crossed it every few milliseconds with a filter coefficient of 0.05
+/// (`0x1015`), and each crossing rebuilt the table: 8–14 ms of thread time on the host, enough to
+/// hold `host-sim serve` seconds behind the wall clock.
+pub const PRELOAD_RESOLVE_N: f32 = 0.05;
 
 /// Row 0 of the grid is built at this share of the voltage step instead of 0 V, where the foot
 /// does not move and φp is undefined (the limit the row stands for).
