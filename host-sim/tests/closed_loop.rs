@@ -127,24 +127,32 @@ fn a_preload_below_the_window_is_refused() {
     assert_safe(&out);
 }
 
-/// Feedforward from the inverse thrust model against plain PI feedback, both told the 2 N load
-/// (so both plan the same feasible profile): the model supplies the drive the PI would otherwise
-/// have to build from position error.
+/// Feedforward from the inverse thrust model against plain PI feedback, both told the load (so
+/// both plan the same feasible profile): the model supplies the drive the PI would otherwise have
+/// to build from position error. On every carriage of the sweep (issue 11), against 2 N or, where
+/// that is beyond the carriage, half its stall force (0.1 kg: 0.45 N). Measured peak following
+/// error with / without: 0.1 kg 1.3 / 5.2 µm, 0.3 kg 2.5 / 7.4, 1 kg 0.78 / 9.3, 5 kg 0.71 / 7.7,
+/// 50 kg 0.68 / 6.2.
 #[test]
-fn feedforward_halves_the_peak_following_error_against_a_2_n_load() {
-    let p = Params::prototype();
-    let spec =
-        |feedforward| MoveSpec { to_um: 1000.0, preload_n: 16.0, load_n: 2.0, feedforward, load_known: true };
-    let with = single_move(&p, spec(true)).expect("move with feedforward");
-    let without = single_move(&p, spec(false)).expect("move without feedforward");
-    assert!(with.fault.is_none() && with.final_error_nm.abs() <= 50.0, "{with:?}");
-    assert!(with.settle_time_s.is_some(), "{with:?}");
-    assert!(
-        2.0 * with.max_following_error_um <= without.max_following_error_um,
-        "peak following error with feedforward {} µm, without {} µm",
-        with.max_following_error_um,
-        without.max_following_error_um
-    );
+fn feedforward_halves_the_peak_following_error_against_a_known_load_on_every_carriage() {
+    for mass_kg in host_sim::harness::sweep::MASSES_KG {
+        let mut p = Params::prototype();
+        p.slider.mass_kg = mass_kg;
+        let load_n = 2.0f64.min(0.5 * host_sim::harness::sweep::plant_stall_n(&p).0);
+        let spec =
+            |feedforward| MoveSpec { to_um: 1000.0, preload_n: 16.0, load_n, feedforward, load_known: true };
+        let with = single_move(&p, spec(true)).expect("move with feedforward");
+        let without = single_move(&p, spec(false)).expect("move without feedforward");
+        let case = format!("{mass_kg} kg against {load_n:.2} N");
+        assert!(with.fault.is_none() && with.final_error_nm.abs() <= 50.0, "{case}: {with:?}");
+        assert!(with.settle_time_s.is_some(), "{case}: {with:?}");
+        assert!(
+            2.0 * with.max_following_error_um <= without.max_following_error_um,
+            "{case}: peak following error with feedforward {} µm, without {} µm",
+            with.max_following_error_um,
+            without.max_following_error_um
+        );
+    }
 }
 
 /// The controller knows the moving mass only as a parameter (`SPA 1 0x101A`): told half or
@@ -352,5 +360,27 @@ fn unknown_loads_at_70_percent_of_each_plants_stall_settle_without_a_fault() {
         assert!(r.fault.is_none() && r.settle_time_s.is_some(), "{case}: {r:?}");
         let bound = if mass_kg <= 1.0 { 200.0 } else { 1500.0 };
         assert!(r.overshoot_nm < bound, "{case}: overshoot {:.1} nm", r.overshoot_nm);
+    }
+}
+
+/// Issue 11: holding ±1 count for 1 s under a 1 N load step applied while holding, on every
+/// carriage of the sweep and both ways. In the fine mode the foot sticks to the slider: static
+/// friction (μs·F0 ≈ 6 N at 16 N) carries the step, and the friction layer's shear stiffness
+/// (7.7e8 N/m) gives way by about 1 nm, well inside the count (expected from the plant's
+/// parameters, before running it). The 0.1 kg carriage holds it too, though 1 N is above what
+/// its drive can push at speed (0.9 N).
+#[test]
+fn holding_stays_within_one_count_for_a_second_under_a_1_n_load_step() {
+    for mass_kg in host_sim::harness::sweep::MASSES_KG {
+        for sense in [1i8, -1] {
+            let mut p = Params::prototype();
+            p.slider.mass_kg = mass_kg;
+            let mut sil = ready_board(&p, controller_config(&p), 16.0).unwrap();
+            let r = run_move(&mut sil, 100_000, 3.0, 0.05);
+            assert!(r.fault.is_none() && r.settle_time_s.is_some(), "{mass_kg} kg: {r:?}");
+            sil.set_load(ExternalLoad::opposing(1.0, sense));
+            assert_stays(&mut sil, 100_000.0, 1.0);
+            assert_eq!(sil.controller.state(), State::Holding, "{mass_kg} kg, load along {sense}");
+        }
     }
 }

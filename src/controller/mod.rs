@@ -326,6 +326,12 @@ impl Controller {
         self.speed_nm_s
     }
 
+    /// The load estimate the feedforward pushes against (N along +x): the observer's, plus the
+    /// integral's correction while moving.
+    pub fn load_estimate_n(&self) -> f32 {
+        self.thrust_bias_n
+    }
+
     /// Largest |reference − position| since the last move command.
     pub fn max_following_error_nm(&self) -> f32 {
         self.max_following_error_nm
