@@ -286,11 +286,12 @@ impl ModelRequest {
 }
 
 impl ModelTable {
-    /// The expensive part: [`VOLT_POINTS`] model points, the thrust at every grid node and
-    /// [`LOAD_POINTS`] speed roots or, for a carriage whose speed ripples, periodic orbits (a few
-    /// hundred thousand instructions on the Cortex-M4; 1.35 million measured in PIL for the 1 kg
-    /// default; more for a carriage that rides the foot, whose whole grid comes from orbits), for
-    /// a lower-priority context.
+    /// The expensive part: the frequency chosen first when the request offers several
+    /// ([`ModelRequest::chosen`]), then [`VOLT_POINTS`] model points, the thrust at every grid
+    /// node and [`LOAD_POINTS`] speed roots or, for a carriage whose speed ripples, periodic orbits
+    /// (a few hundred thousand instructions on the Cortex-M4; up to 2.25 million measured in PIL
+    /// for the 1 kg default with the choice, 1.35 million without; more for a carriage that rides
+    /// the foot, whose whole grid comes from orbits), for a lower-priority context.
     pub fn build(request: &ModelRequest) -> Self {
         let request = &request.chosen();
         let top = request.max_drive_v.max(0.0);
