@@ -112,7 +112,7 @@ impl Controller {
 
     /// The model's braking: reverse drive at full voltage brakes with at least the stall force.
     pub(super) fn model_brake_nm_s2(&self) -> f32 {
-        let mass = self.cfg.moving_mass_kg.max(1e-3);
+        let mass = self.moving_mass_kg();
         let stall = self.cached_limits().map_or(0.0, |(f, _)| f);
         // Leave the load estimate's share of the thrust for the load.
         let usable = (stall - self.thrust_bias_n.abs()).max(0.3 * stall);
@@ -123,7 +123,7 @@ impl Controller {
     /// full drive, less the load estimate, over the moving mass. No acceleration the motor
     /// cannot deliver at the measured preload.
     pub(super) fn speedup_limit_nm_s2(&self) -> f32 {
-        let mass = self.cfg.moving_mass_kg.max(1e-3);
+        let mass = self.moving_mass_kg();
         let Some(t) = self.model.table.as_ref() else { return 0.0 };
         let v = self.profile.velocity_nm_s();
         let thrust = t.full_thrust_n(v.abs() * 1e-6);

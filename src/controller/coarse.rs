@@ -23,12 +23,19 @@ impl Controller {
             // Observe only while the drive pushes the way the slider moves at a fair speed: the
             // model is least certain when braking and near standstill (stick).
             let backslide = self.state() == State::Moving && d * self.speed_nm_s < -50_000.0;
-            if (d * self.speed_nm_s > 200_000.0 || backslide) && self.drive_v > 0.2 * self.cfg.max_drive_v {
-                let applied =
-                    self.model.table.as_ref().map_or(0.0, |t| {
-                        t.thrust_n(self.generator.amplitude_v(), d * self.speed_nm_s * 1e-6)
-                    });
-                let mass = self.cfg.moving_mass_kg;
+            let observe =
+                (d * self.speed_nm_s > 200_000.0 || backslide) && self.drive_v > 0.2 * self.cfg.max_drive_v;
+            let applied = if observe || self.speedup.is_some() {
+                self.model
+                    .table
+                    .as_ref()
+                    .map_or(0.0, |t| t.thrust_n(self.generator.amplitude_v(), d * self.speed_nm_s * 1e-6))
+            } else {
+                0.0
+            };
+            self.time_speedup(d * applied);
+            if observe {
+                let mass = self.moving_mass_kg();
                 let accel = (self.speed_nm_s - self.prev_speed_nm_s) / self.dt_s * 1e-9;
                 let sample = d * applied - mass * accel;
                 // Sliding back under drive means the load is far above the estimate: learn faster.
@@ -44,7 +51,7 @@ impl Controller {
                 clamp_sym_f32(self.integral_n + self.cfg.ki_n_per_nm_s * err_nm * self.dt_s, stall);
             self.thrust_bias_n = clamp_sym_f32(self.observed_bias_n + self.integral_n, stall);
             // Inertia of the profile's acceleration is part of the load (F = M·a).
-            let mass = self.cfg.moving_mass_kg;
+            let mass = self.moving_mass_kg();
             let load_along = f32::from(dir) * (self.thrust_bias_n + mass * self.accel_ref_nm_s2 * 1e-9);
             self.model
                 .table

@@ -3,6 +3,7 @@
 
 use super::open_loop::OpenLoopRun;
 use super::referencing::ReferenceSearch;
+use super::SpeedUp;
 use super::{validate_settings, Activity, CommandError, Controller, ControllerConfig, Mode, State};
 use crate::sensors::PreloadCell;
 
@@ -37,6 +38,7 @@ impl Controller {
             self.preload = PreloadCell::new(cfg.preload);
         }
         self.cfg = cfg;
+        self.mass_kg = cfg.moving_mass_kg;
         self.model.reconfigure(&self.cfg);
         Ok(())
     }
@@ -83,6 +85,7 @@ impl Controller {
         // The braking rate is fixed for the whole move: a braking curve that changed under the
         // profile's feet would arrive with speed left over.
         self.decel_nm_s2 = self.accel_limit_nm_s2();
+        self.speedup = Some(SpeedUp::start());
         self.max_following_error_nm = 0.0;
         self.on_target_s = 0.0;
         self.activity = Activity::Moving;

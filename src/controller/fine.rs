@@ -78,7 +78,7 @@ impl Controller {
             f.settle = 0;
         }
         // Trapezoid toward the commanded offset.
-        let mass = self.cfg.moving_mass_kg.max(1e-3);
+        let mass = self.moving_mass_kg();
         let grip_n = self.preload.force_n().max(0.0) * self.cfg.mu_dynamic;
         let accel_v_s2 = (0.25 * grip_n / mass / (nm_per_v * 1e-9)).max(1.0);
         let rate_max_v_s: f32 = 20_000.0;

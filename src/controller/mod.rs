@@ -18,12 +18,14 @@ mod coarse;
 mod commands;
 mod config;
 mod fine;
+mod mass;
 pub mod model_cache;
 mod open_loop;
 mod referencing;
 mod supervision;
 pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
 use fine::FineStep;
+use mass::SpeedUp;
 use model_cache::ModelSlot;
 use open_loop::OpenLoopRun;
 use referencing::ReferenceSearch;
@@ -220,6 +222,10 @@ pub struct Controller {
     last_sense: Option<usize>,
     prev_speed_nm_s: f32,
     decel_nm_s2: f32,
+    /// The moving mass in use (kg): the parameter, or what a speed-up measured ([`mass`]).
+    mass_kg: f32,
+    /// The move's speed-up while it is being timed.
+    speedup: Option<SpeedUp>,
     reference_failures: u32,
     faults: u32,
     /// Control periods since start (wraps): the speed-up limit (a model evaluation) is
@@ -265,6 +271,8 @@ impl Controller {
             model: ModelSlot::new(&cfg, 0),
             prev_speed_nm_s: 0.0,
             decel_nm_s2: 1.0,
+            mass_kg: cfg.moving_mass_kg,
+            speedup: None,
             reference_failures: 0,
             faults: 0,
             tick: 0,

@@ -5,6 +5,10 @@
 use super::{Activity, CommandError, Controller, FaultCode, Inputs, Mode, State};
 use crate::sensors::Encoder;
 
+/// Share of each period's encoder speed taken into the speed estimate: a first-order filter of
+/// 20 periods (2 ms at 10 kHz).
+pub(super) const SPEED_FILTER: f32 = 0.05;
+
 impl Controller {
     pub(super) fn sense(&mut self, inputs: &Inputs) {
         self.preload.update(inputs.preload_word);
@@ -18,7 +22,7 @@ impl Controller {
                 let delta = e.update(inputs.encoder_raw);
                 let v = delta as f32 * e.nm_per_count() as f32 / self.dt_s;
                 // 2 ms speed filter: the encoder quantum (50 nm per 100 µs) is 0.5 mm/s.
-                self.speed_nm_s += 0.05 * (v - self.speed_nm_s);
+                self.speed_nm_s += SPEED_FILTER * (v - self.speed_nm_s);
             }
         }
     }
