@@ -18,6 +18,7 @@ mod coarse;
 mod commands;
 mod config;
 mod fine;
+mod frequency;
 mod mass;
 pub mod model_cache;
 mod open_loop;

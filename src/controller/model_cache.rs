@@ -25,7 +25,8 @@
 //! takes it if it still answers the controller's configuration. Until the first table is in, the
 //! profile has no speed to move at (as without a preload reading).
 
-use super::{Controller, ControllerConfig, State};
+pub use super::frequency::{FrequencyChoice, FREQ_CANDIDATES};
+use super::{Controller, ControllerConfig};
 use crate::fastmath::{acos_f32, clamp_f32, fx_from_f32};
 use crate::inertia::Orbits;
 use crate::model::PerVolt;
@@ -49,63 +50,6 @@ pub const PRELOAD_RESOLVE_N: f32 = 0.05;
 /// Row 0 of the grid is built at this share of the voltage step instead of 0 V, where the foot
 /// does not move and φp is undefined (the limit the row stands for).
 const ROW0_SHARE: f32 = 0.05;
-
-/// Most drive frequencies a request offers the table build to choose from.
-pub const FREQ_CANDIDATES: usize = 12;
-
-/// Candidate spacing at least (Hz): the motor table's own frequency step.
-const FREQ_CANDIDATE_STEP_HZ: f32 = 100.0;
-
-/// A chosen frequency is kept while the load along the move stays within this share of the
-/// stall force of the load it was chosen for (a new choice costs a dozen model evaluations off
-/// the tick, and an observer learning an unknown load should not ask for one every few ms).
-const RECHOOSE_LOAD_SHARE: f32 = 0.2;
-
-/// The drive frequencies a table may be built at, with the per-volt amplitudes at each: the build
-/// drives where the model with the carriage's mass gives the highest speed at full drive against
-/// `load_n` ([`ModelRequest::chosen`]). A light carriage rides the foot and runs faster at a lower
-/// frequency (0.05 kg: 0.41 mm/s at 1.2 kHz against 0.23 at 2.2 kHz, the plant 0.41 and 0.27); a
-/// heavy load near the top frequency's stall force moves faster where the contact force is larger.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FrequencyChoice {
-    pub frequency_hz: [f32; FREQ_CANDIDATES],
-    pub per_volt: [PerVolt; FREQ_CANDIDATES],
-    /// Candidates in use (1: the frequency is given).
-    pub len: usize,
-    /// Opposing load the choice is for (N).
-    pub load_n: f32,
-}
-
-impl FrequencyChoice {
-    /// Only `frequency_hz`, for `load_n`.
-    pub fn fixed(frequency_hz: f32, per_volt: PerVolt, load_n: f32) -> Self {
-        FrequencyChoice {
-            frequency_hz: [frequency_hz; FREQ_CANDIDATES],
-            per_volt: [per_volt; FREQ_CANDIDATES],
-            len: 1,
-            load_n,
-        }
-    }
-
-    /// From `highest_hz` down to `lowest_hz` in steps of at least 100 Hz (at most
-    /// [`FREQ_CANDIDATES`]); `per_volt(f)` gives the amplitudes at `f`.
-    pub fn between(lowest_hz: f32, highest_hz: f32, load_n: f32, per_volt: impl Fn(f32) -> PerVolt) -> Self {
-        let mut c = Self::fixed(highest_hz, per_volt(highest_hz), load_n);
-        let span = (highest_hz - lowest_hz).max(0.0);
-        let step = FREQ_CANDIDATE_STEP_HZ.max(span / (FREQ_CANDIDATES - 1) as f32);
-        for k in 1..FREQ_CANDIDATES {
-            let f = highest_hz - step * k as f32;
-            if f < lowest_hz - 1e-3 {
-                break;
-            }
-            if let (Some(slot_f), Some(slot_p)) = (c.frequency_hz.get_mut(k), c.per_volt.get_mut(k)) {
-                (*slot_f, *slot_p) = (f, per_volt(f));
-                c.len = k + 1;
-            }
-        }
-        c
-    }
-}
 
 /// What a table is built from.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -237,7 +181,11 @@ fn less_guide_friction(row: &mut [f32; PHASE_POINTS], request: &ModelRequest, fo
 /// `speed_at_foot_load` (the speed against a load on the foot alone): the viscous part depends
 /// on the speed, so three passes (its share of the thrust is small; each pass shrinks the
 /// error by that share).
-fn with_guide_friction(request: &ModelRequest, load_n: f32, speed_at_foot_load: impl Fn(f32) -> f32) -> f32 {
+pub(super) fn with_guide_friction(
+    request: &ModelRequest,
+    load_n: f32,
+    speed_at_foot_load: impl Fn(f32) -> f32,
+) -> f32 {
     let mut v = speed_at_foot_load(load_n + request.rail_coulomb_n);
     if request.rail_viscous_n_s_per_m != 0.0 {
         for _ in 0..3 {
@@ -250,39 +198,6 @@ fn with_guide_friction(request: &ModelRequest, load_n: f32, speed_at_foot_load: 
 /// Thrust of a row at zero slider speed: the φp = π/2 column.
 fn thrust_at_zero_speed(row: &[f32; PHASE_POINTS]) -> f32 {
     row.get((PHASE_POINTS - 1) / 2).copied().unwrap_or(0.0)
-}
-
-impl ModelRequest {
-    /// This request at the candidate frequency where the model gives the highest speed at full
-    /// drive against the choice's load (the carriage's periodic motion where its speed ripples,
-    /// eq. 19 otherwise; net of the guide's friction); itself when there is no choice. Ties go
-    /// to the higher frequency.
-    pub fn chosen(&self) -> ModelRequest {
-        let c = &self.choice;
-        if c.len <= 1 {
-            return *self;
-        }
-        let preload = fx_from_f32(self.preload_n);
-        let top = fx_from_f32(self.max_drive_v.max(0.0));
-        let mut best = (f32::NEG_INFINITY, *self);
-        for (&f, pv) in c.frequency_hz.iter().zip(c.per_volt.iter()).take(c.len) {
-            let full = pv.point(preload, top);
-            let orbits = Orbits::new(&full, f, self.moving_mass_kg);
-            let speed = with_guide_friction(self, c.load_n.max(0.0), |foot_load| {
-                if orbits.inertia_matters() {
-                    orbits.mean_speed_mm_s(foot_load).unwrap_or(0.0)
-                } else {
-                    full.speed_at_load_near(fx_from_f32(foot_load), f32::NAN).to_num()
-                }
-            });
-            if speed > best.0 {
-                best = (speed, ModelRequest { per_volt: *pv, frequency_hz: f, ..*self });
-            }
-        }
-        let mut chosen = best.1;
-        chosen.choice = FrequencyChoice::fixed(chosen.frequency_hz, chosen.per_volt, c.load_n);
-        chosen
-    }
 }
 
 impl ModelTable {
@@ -576,24 +491,10 @@ impl Controller {
     /// Cheap: a board calls it under its lock, builds the table outside, then installs it.
     pub fn model_request(&self) -> Option<ModelRequest> {
         let preload_n = self.preload_n()?;
-        // The frequency is chosen for the load the motor pushes against: along the move while
-        // moving, either way otherwise. It is chosen anew when there is no table or, while
-        // moving, when that load has moved away from the one it was chosen for (the observer
-        // learned an unknown load, or the move goes the other way); else a table for a new
-        // preload keeps it. A table built during a move takes over within it: the generator
-        // changes frequency without a phase jump.
-        let moving = self.state() == State::Moving;
-        let load_n = if moving {
-            // The move's sense, not the side of the target the slider is on: an overshoot at
-            // the end of a move must not flip the choice.
-            let dir = if self.last_sense == Some(1) { -1.0 } else { 1.0 };
-            (dir * self.thrust_bias_n).max(0.0)
-        } else {
-            self.thrust_bias_n.abs()
-        };
-        let kept = self.model.table.as_ref().filter(|t| {
-            !moving || (load_n - t.request().choice.load_n).abs() <= RECHOOSE_LOAD_SHARE * t.stall_n()
-        });
+        // The frequency is chosen anew when there is no table or the load it was chosen for has
+        // moved ([`super::frequency`]); else a table for a new preload keeps it.
+        let load_n = self.choice_load_n();
+        let kept = self.model.table.as_ref().filter(|t| self.keeps_frequency(t, load_n));
         let choice = match kept {
             Some(t) if (preload_n - t.request().preload_n).abs() <= PRELOAD_RESOLVE_N => return None,
             Some(t) => t.request().choice,
