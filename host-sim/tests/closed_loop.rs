@@ -313,7 +313,7 @@ fn a_light_carriage_drives_at_the_frequency_where_its_model_and_the_plant_run_fa
 
 /// Issue 11 item 2: against a load above the top frequency's stall force, the observer learns it
 /// and the drive moves to a frequency with more thrust. A 5 kg carriage against an unknown 4 N
-/// (71 % of the highest stall force the plant reaches in the band, 5.6 N near 1 kHz; above its
+/// (78 % of the highest stall force the plant reaches in the band, 5.1 N at 0.9 kHz; above its
 /// 3.95 N at 2.2 kHz): at the fixed 2.2 kHz it stalls (the stall fault, drive safe); with the
 /// frequency chosen it settles (measured 3.8 s at 1.2 kHz, where the plant makes 0.28 mm/s under
 /// 4 N). The way back, with the load, goes at 2.2 kHz again.
