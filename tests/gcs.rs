@@ -299,7 +299,7 @@ fn a_line_with_one_bad_part_executes_nothing() {
         // One unknown parameter: the known one is not written.
         (b"SPA 1 0x1 50 1 0x9999 3\n", b""),
         (b"ERR?\n", b"54\n"),
-        (b"SPA? 1 0x1\n", b"1 0x1=100\n"),
+        (b"SPA? 1 0x1\n", b"1 0x1=400\n"),
         // A query with one bad axis answers nothing at all.
         (b"POS? 1 3\n", b""),
         (b"ERR?\n", b"15\n"),
@@ -475,7 +475,7 @@ fn velocity_acceleration_deceleration() {
 fn parameters_spa_hpa_wpa() {
     let mut rig = Rig::new();
     rig.transcript(&[
-        (b"SPA? 1 0x1\n", b"1 0x1=100\n"),
+        (b"SPA? 1 0x1\n", b"1 0x1=400\n"),
         (b"SPA 1 0x1 55.5\n", b""),
         (b"ERR?\n", b"0\n"),
         (b"SPA? 1 0x1\n", b"1 0x1=55.5\n"),

@@ -175,9 +175,15 @@ fn characterize_gap_calibrate_and_the_same_moves_run_better() {
         fe_after <= fe_before / 1.6,
         "peak following error {fe_before:.0} → {fe_after:.0} nm: not 1.6× smaller"
     );
+    // Settling: the calibrated model knows the drive pushes with 20 % less friction (μd 0.28, not
+    // 0.35) and plans its braking at that lower stall force, about a quarter longer than the
+    // uncalibrated plan (whose harder braking the plant still makes: reverse drive brakes with
+    // more than the stall force, and the hidden guide friction helps). The braking is about a
+    // tenth of the 0.43 s move, so up to some 3 % longer; measured with kp 400 /s 0.434 → 0.444 s
+    // (with kp 100 /s, where the harder plan left more to settle, 0.469 → 0.453).
     assert!(
-        settle_after <= settle_before + period_s,
-        "settle {settle_before:.4} → {settle_after:.4} s: longer by more than a record period"
+        settle_after <= 1.03 * settle_before + period_s,
+        "settle {settle_before:.4} → {settle_after:.4} s: more than 3 % and a record period longer"
     );
 }
 

@@ -63,7 +63,13 @@ impl Controller {
             let nm_per_count = self.encoder.map_or(50, |e| e.nm_per_count());
             let half_count = 0.5 * nm_per_count as f32;
             if f.settle >= 4 && err_nm.abs() > half_count {
-                let wanted = self.fine_offset_v + err_nm / nm_per_v;
+                // The count says only which bin the slider is in, and a slider that has just
+                // crossed into the next bin sits at its edge: stepping a whole count carried it
+                // to the far edge of the target's bin, where the step's own settling took it out
+                // again (5 kg: 50.9 nm). Half a count short lands it inside, or one count low
+                // for another half-count step.
+                let step_nm = err_nm - err_nm.signum() * half_count;
+                let wanted = self.fine_offset_v + step_nm / nm_per_v;
                 if wanted.abs() > room {
                     // Out of static stroke: take the step with the sine, which recentres.
                     self.mode = Mode::Coarse;
