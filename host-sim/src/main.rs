@@ -351,9 +351,13 @@ fn run(cli: Cli) -> Result<()> {
         Command::Characterize(args) => host_sim::virtual_controller::characterize::run(&args.into())?,
         Command::Calibrate(args) => host_sim::virtual_controller::calibrate::run(&params, &args.into())?,
         Command::Moves(args) => host_sim::virtual_controller::gcs_moves::run(&args.into())?,
-        Command::Sweep { json } => {
+        Command::Sweep { json, preload_n } => {
+            anyhow::ensure!(
+                preload_n.is_finite() && preload_n > 0.0,
+                "--preload-n must be a positive number of newtons, got {preload_n}"
+            );
             let show = check::show_progress();
-            let rows = host_sim::harness::sweep::run(&params, |done, total| {
+            let rows = host_sim::harness::sweep::run(&params, preload_n, |done, total| {
                 if show {
                     eprint!("\rsweep: {done}/{total} moves");
                 }

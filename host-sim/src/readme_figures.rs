@@ -68,7 +68,7 @@ fn moves_table(p: &Params) -> Result<String> {
         let _ = writeln!(t, "| {label} | {} | {} | {} |", c[0], c[1], c[2]);
     };
     // The limit as the closed-loop test measures it: on the plant.
-    let limit_s = crate::harness::sweep::physical_limit_s(p, 1e-3).0;
+    let limit_s = crate::harness::sweep::physical_limit_s(p, 1e-3, 16.0).0;
     let label = format!(
         "1 mm, no load (physical limit {limit_s:.3} s, measured on the plant; test asserts ≤ 1.25× = {:.3} s, < 200 nm)",
         1.25 * limit_s

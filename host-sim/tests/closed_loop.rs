@@ -17,7 +17,7 @@ fn board(preload_n: f64) -> (Params, Sil) {
 /// 0.5–2.2 kHz, plus the time to reach that speed at stall thrust (measured on the plant, no
 /// controller involved: `host_sim::harness::sweep::physical_limit_s`).
 fn physical_limit_s(p: &Params, distance_m: f64) -> f64 {
-    host_sim::harness::sweep::physical_limit_s(p, distance_m).0
+    host_sim::harness::sweep::physical_limit_s(p, distance_m, 16.0).0
 }
 
 fn assert_stays(sil: &mut Sil, target_nm: f64, seconds: f64) {
@@ -138,7 +138,7 @@ fn feedforward_halves_the_peak_following_error_against_a_known_load_on_every_car
     for mass_kg in host_sim::harness::sweep::MASSES_KG {
         let mut p = Params::prototype();
         p.slider.mass_kg = mass_kg;
-        let load_n = 2.0f64.min(0.5 * host_sim::harness::sweep::plant_stall_n(&p).0);
+        let load_n = 2.0f64.min(0.5 * host_sim::harness::sweep::plant_stall_n(&p, 16.0).0);
         let spec =
             |feedforward| MoveSpec { to_um: 1000.0, preload_n: 16.0, load_n, feedforward, load_known: true };
         let with = single_move(&p, spec(true)).expect("move with feedforward");
@@ -361,7 +361,7 @@ fn unknown_loads_at_70_percent_of_each_plants_stall_settle_without_a_fault() {
     for mass_kg in host_sim::harness::sweep::MASSES_KG {
         let mut p = Params::prototype();
         p.slider.mass_kg = mass_kg;
-        let (stall_n, _) = host_sim::harness::sweep::plant_stall_n(&p);
+        let (stall_n, _) = host_sim::harness::sweep::plant_stall_n(&p, 16.0);
         let load_n = 0.7 * stall_n;
         let mut sil = ready_board(&p, controller_config(&p), 16.0).unwrap();
         sil.set_load(ExternalLoad::opposing(load_n, 1));

@@ -122,6 +122,9 @@ pub enum Command {
         /// Print one JSON array of rows instead of the table.
         #[arg(long)]
         json: bool,
+        /// Preload of every case (N); the controller refuses one outside its window.
+        #[arg(long, default_value_t = host_sim::harness::sweep::DEFAULT_PRELOAD_N)]
+        preload_n: f64,
     },
     /// Processor in the loop: one closed-loop move with the control core running on an emulated
     /// Cortex-M4F (QEMU) against the plant; instruction counts per tick and per state, and every

@@ -56,17 +56,20 @@ pub struct SweepRow {
     pub fault: Option<String>,
 }
 
-/// The plant's physical limit for a move of `distance_m` at 16 N (s), and the frequency of its
-/// highest no-load speed (Hz).
-pub fn physical_limit_s(p: &Params, distance_m: f64) -> (f64, f64) {
+/// The preload the sweep runs at unless told otherwise (N).
+pub const DEFAULT_PRELOAD_N: f64 = 16.0;
+
+/// The plant's physical limit for a move of `distance_m` at `preload_n` (s), and the frequency of
+/// its highest no-load speed (Hz).
+pub fn physical_limit_s(p: &Params, distance_m: f64, preload_n: f64) -> (f64, f64) {
     let freqs: Vec<f64> = (5..=22).map(|k| 100.0 * f64::from(k)).collect();
     let (best_f, best_v) = freqs
         .par_iter()
-        .map(|&f| (f, steady_speed_m_s(p, 16.0, 100.0, f, 1, 0.0)))
+        .map(|&f| (f, steady_speed_m_s(p, preload_n, 100.0, f, 1, 0.0)))
         .collect::<Vec<_>>()
         .into_iter()
         .fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
-    let op = OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: best_f };
+    let op = OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz: best_f };
     let stall = ThrustModel::new(p, op).stall_force_n().max(1e-9);
     let speed_up_s = p.slider.mass_kg * best_v / stall;
     (distance_m / best_v.max(1e-9) + speed_up_s, best_f)
@@ -76,20 +79,20 @@ pub fn physical_limit_s(p: &Params, distance_m: f64) -> (f64, f64) {
 /// name (m/s).
 const MOVING_M_S: f64 = 50e-6;
 
-/// The highest stall force the time-domain plant has at 16 N and 100 V over 0.5–2.2 kHz (in
-/// 100 Hz steps; N), and where (Hz): at each frequency where it moves unloaded, the load at
+/// The highest stall force the time-domain plant has at `preload_n` and 100 V over 0.5–2.2 kHz
+/// (in 100 Hz steps; N), and where (Hz): at each frequency where it moves unloaded, the load at
 /// which its steady speed falls to zero, bisected to 0.01 N.
-pub fn plant_stall_n(p: &Params) -> (f64, f64) {
+pub fn plant_stall_n(p: &Params, preload_n: f64) -> (f64, f64) {
     let stall_at = |f: f64| {
-        let (mut lo, mut hi) = (0.0f64, 2.0 * p.friction.mu_dynamic * 16.0);
+        let (mut lo, mut hi) = (0.0f64, 2.0 * p.friction.mu_dynamic * preload_n);
         // Where the motor hardly moves unloaded (0.5 kHz for light carriages) the speed is
         // noise about zero, and a bisection on its sign finds nothing real.
-        if steady_speed_m_s(p, 16.0, 100.0, f, 1, lo) < MOVING_M_S {
+        if steady_speed_m_s(p, preload_n, 100.0, f, 1, lo) < MOVING_M_S {
             return 0.0;
         }
         while hi - lo > 0.01 {
             let mid = 0.5 * (lo + hi);
-            if steady_speed_m_s(p, 16.0, 100.0, f, 1, mid) > 0.0 {
+            if steady_speed_m_s(p, preload_n, 100.0, f, 1, mid) > 0.0 {
                 lo = mid;
             } else {
                 hi = mid;
@@ -107,20 +110,20 @@ pub fn plant_stall_n(p: &Params) -> (f64, f64) {
     })
 }
 
-fn one(p: &Params, to_um: f64, load_n: f64, known: bool, feedforward: bool) -> anyhow::Result<MoveResult> {
+fn one(p: &Params, preload_n: f64, to_um: f64, load_n: f64, known: bool, feedforward: bool) -> anyhow::Result<MoveResult> {
     let mut cfg = controller_config(p);
     cfg.feedforward = feedforward;
     if known {
         cfg.expected_load_n = load_n as f32;
     }
-    let mut sil = ready_board(p, cfg, 16.0)?;
+    let mut sil = ready_board(p, cfg, preload_n)?;
     sil.set_load(ExternalLoad::opposing(load_n, 1));
     let max_s = 3.0 + 5.0 * to_um * 1e-6 / 2.0e-3;
     Ok(run_move(&mut sil, (to_um * 1e3).round() as i64, max_s, 0.05))
 }
 
-/// Runs every move on every plant (in parallel); `progress(done, total)` after each.
-pub fn run(p: &Params, progress: impl Fn(usize, usize) + Sync) -> anyhow::Result<Vec<SweepRow>> {
+/// Runs every move on every plant at `preload_n` (in parallel); `progress(done, total)` after each.
+pub fn run(p: &Params, preload_n: f64, progress: impl Fn(usize, usize) + Sync) -> anyhow::Result<Vec<SweepRow>> {
     let mut masses = vec![p.slider.mass_kg];
     masses.extend(MASSES_KG.iter().copied().filter(|&m| (m - p.slider.mass_kg).abs() > 1e-12));
     let (limits, stalls): (Vec<f64>, Vec<f64>) = masses
@@ -128,7 +131,7 @@ pub fn run(p: &Params, progress: impl Fn(usize, usize) + Sync) -> anyhow::Result
         .map(|&m| {
             let mut q = p.clone();
             q.slider.mass_kg = m;
-            (physical_limit_s(&q, 1e-3).0, plant_stall_n(&q).0)
+            (physical_limit_s(&q, 1e-3, preload_n).0, plant_stall_n(&q, preload_n).0)
         })
         .unzip();
     let cases: Vec<(usize, usize)> =
@@ -146,7 +149,7 @@ pub fn run(p: &Params, progress: impl Fn(usize, usize) + Sync) -> anyhow::Result
             };
             let mut q = p.clone();
             q.slider.mass_kg = masses[i];
-            let r = one(&q, to_um, load_n, known, ff)?;
+            let r = one(&q, preload_n, to_um, load_n, known, ff)?;
             progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, total);
             let limit_ratio =
                 (to_um == 1000.0 && load_n == 0.0).then(|| r.settle_time_s.map(|t| t / limits[i])).flatten();
