@@ -52,7 +52,19 @@ impl Controller {
             self.thrust_bias_n = clamp_sym_f32(self.observed_bias_n + self.integral_n, stall);
             // Inertia of the profile's acceleration is part of the load (F = M·a).
             let mass = self.moving_mass_kg();
-            let load_along = f32::from(dir) * (self.thrust_bias_n + mass * self.accel_ref_nm_s2 * 1e-9);
+            // While braking, what the observer learned beyond the known load (told, or shared by
+            // the moves each way) is not counted on to help when it opposes the motion: it is a
+            // real load or the model's thrust error, and the error goes with the drive (at 5 N
+            // preload the model's thrust at cruise was 0.9 N high; fed forward as a load that
+            // would brake the slider, it kept the drive forward and the 1 kg carriage overshot
+            // 1 mm by 677 nm, now 94). A real unknown load then brakes a little more than planned,
+            // and the approach finishes.
+            let braking = self.accel_ref_nm_s2 * v_ref < 0.0;
+            let bias_along = f32::from(dir) * self.thrust_bias_n;
+            let known_along = f32::from(dir) * self.shared_load_n;
+            let counted =
+                if braking { known_along + (bias_along - known_along).min(0.0) } else { bias_along };
+            let load_along = counted + f32::from(dir) * mass * self.accel_ref_nm_s2 * 1e-9;
             self.model
                 .table
                 .as_ref()

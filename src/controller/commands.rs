@@ -111,11 +111,13 @@ impl Controller {
         if let Some(slot) = self.last_sense.and_then(|s| self.end_bias_n.get_mut(s)) {
             *slot = Some(self.observed_bias_n + self.integral_n);
         }
+        self.shared_load_n = self.cfg.expected_load_n;
         if let [Some(plus), Some(minus)] = self.end_bias_n {
             let common = 0.5 * (plus + minus);
             self.observed_bias_n = common;
             self.integral_n = 0.0;
             self.thrust_bias_n = common;
+            self.shared_load_n = common;
         }
         self.last_sense = Some(usize::from(target_nm < self.position_nm()));
     }

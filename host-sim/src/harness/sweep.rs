@@ -110,7 +110,14 @@ pub fn plant_stall_n(p: &Params, preload_n: f64) -> (f64, f64) {
     })
 }
 
-fn one(p: &Params, preload_n: f64, to_um: f64, load_n: f64, known: bool, feedforward: bool) -> anyhow::Result<MoveResult> {
+fn one(
+    p: &Params,
+    preload_n: f64,
+    to_um: f64,
+    load_n: f64,
+    known: bool,
+    feedforward: bool,
+) -> anyhow::Result<MoveResult> {
     let mut cfg = controller_config(p);
     cfg.feedforward = feedforward;
     if known {
@@ -123,7 +130,11 @@ fn one(p: &Params, preload_n: f64, to_um: f64, load_n: f64, known: bool, feedfor
 }
 
 /// Runs every move on every plant at `preload_n` (in parallel); `progress(done, total)` after each.
-pub fn run(p: &Params, preload_n: f64, progress: impl Fn(usize, usize) + Sync) -> anyhow::Result<Vec<SweepRow>> {
+pub fn run(
+    p: &Params,
+    preload_n: f64,
+    progress: impl Fn(usize, usize) + Sync,
+) -> anyhow::Result<Vec<SweepRow>> {
     let mut masses = vec![p.slider.mass_kg];
     masses.extend(MASSES_KG.iter().copied().filter(|&m| (m - p.slider.mass_kg).abs() > 1e-12));
     let (limits, stalls): (Vec<f64>, Vec<f64>) = masses
