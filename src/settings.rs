@@ -351,8 +351,8 @@ settings! {
     // field is always shown in mm), range in the field's unit, keep, description
     // 400 /s: measured on the sweep at 100, 200, 300, 400 and 600 /s, the peak following errors
     // fall up to 400 /s (by 1.5–2× against unknown loads, the light carriages' 10 µm overshoot
-    // 2.4–2.5× less); at 600 /s the 50 kg carriage's 1 µm step rings (14 ms, was 7). The loop's delay (a control
-    // period plus half a drive period, 0.33 ms) costs 8° of phase at 400 rad/s.
+    // 2.4–2.5× less); at 600 /s the 50 kg carriage's 1 µm step rings (14 ms, was 7). The loop's
+    // delay (a control period plus half a drive period, 0.33 ms) costs 8° of phase at 400 rad/s.
     (0x1, "Servo", kp_per_s: f32 = 400.0;
         "1/s", 1.0, NON_NEGATIVE, Stored, "Position feedback gain"),
     (0x2, "Servo", ki_n_per_nm_s: f32 = 1e-3;

@@ -227,8 +227,9 @@ fn back_and_forth(truth: &Params, load: ExternalLoad) -> Vec<f64> {
 /// 0.48 / 0.57 / 2.42, later ones 0.40–0.53 / 0.55–0.67 / 0.57–0.98; now (kp 400 /s, braking
 /// counting only the known load) first 0.36 / 0.35 / 1.71, later ones 0.19–0.34 / 0.32–0.45 /
 /// 0.35–0.50 (the second move, the first reversal, still carries its estimate: 0.5–0.65 µm). The
-/// issue's goal, the tenth at most half the first with μ 15 % low, is not reached there (the first move, from rest with no estimate, is already near the best); it is
-/// with the unknown load, which the later moves start from.
+/// issue's goal, the tenth at most half the first with μ 15 % low, is not reached there (the
+/// first move, from rest with no estimate, is already near the best); it is with the unknown
+/// load, which the later moves start from.
 #[test]
 fn repeated_moves_out_and_back_get_no_worse_and_learn_an_unknown_load() {
     let right = back_and_forth(&Params::prototype(), ExternalLoad::default());
