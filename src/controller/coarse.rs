@@ -61,7 +61,7 @@ impl Controller {
             // and the approach finishes.
             let braking = self.accel_ref_nm_s2 * v_ref < 0.0;
             let bias_along = f32::from(dir) * self.thrust_bias_n;
-            let known_along = f32::from(dir) * self.shared_load_n;
+            let known_along = f32::from(dir) * self.known_load_n();
             let counted =
                 if braking { known_along + (bias_along - known_along).min(0.0) } else { bias_along };
             let load_along = counted + f32::from(dir) * mass * self.accel_ref_nm_s2 * 1e-9;

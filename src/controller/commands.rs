@@ -111,15 +111,23 @@ impl Controller {
         if let Some(slot) = self.last_sense.and_then(|s| self.end_bias_n.get_mut(s)) {
             *slot = Some(self.observed_bias_n + self.integral_n);
         }
-        self.shared_load_n = self.cfg.expected_load_n;
         if let [Some(plus), Some(minus)] = self.end_bias_n {
             let common = 0.5 * (plus + minus);
             self.observed_bias_n = common;
             self.integral_n = 0.0;
             self.thrust_bias_n = common;
-            self.shared_load_n = common;
         }
         self.last_sense = Some(usize::from(target_nm < self.position_nm()));
+    }
+
+    /// The load a move knows is real (N along +x): what the last moves each way share (the mean
+    /// of their end estimates, [`Self::start_load_estimate`]), else the told one. Braking counts
+    /// on it, not on the rest of the estimate.
+    pub(super) fn known_load_n(&self) -> f32 {
+        match self.end_bias_n {
+            [Some(plus), Some(minus)] => 0.5 * (plus + minus),
+            _ => self.cfg.expected_load_n,
+        }
     }
 
     pub fn move_relative(&mut self, delta_nm: i64) -> Result<(), CommandError> {

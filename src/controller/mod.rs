@@ -221,9 +221,6 @@ pub struct Controller {
     /// way (+, −), and the sense of the last move.
     end_bias_n: [Option<f32>; 2],
     last_sense: Option<usize>,
-    /// The load this move knows is real (N along +x): the told one, or what the moves each way
-    /// share ([`Self::start_load_estimate`]); braking counts on it, not on the rest.
-    shared_load_n: f32,
     prev_speed_nm_s: f32,
     decel_nm_s2: f32,
     /// The moving mass in use (kg): the parameter, or what a speed-up measured ([`mass`]).
@@ -272,7 +269,6 @@ impl Controller {
             observed_bias_n: cfg.expected_load_n,
             end_bias_n: [None; 2],
             last_sense: None,
-            shared_load_n: cfg.expected_load_n,
             model: ModelSlot::new(&cfg, 0),
             prev_speed_nm_s: 0.0,
             decel_nm_s2: 1.0,
