@@ -405,16 +405,15 @@ fn holding_stays_within_one_count_for_a_second_under_a_1_n_load_step() {
 /// the foot off (18.4 N on the prototype, `0x1010`; above it the controller refuses to move, as
 /// `a_preload_below_the_window_is_refused` shows at the other end). At 5, 10 and 18 N, on every
 /// carriage of the sweep, a 1 mm move settles within 1.25× that plant's physical limit at that
-/// preload, overshooting under 200 nm, except (measured, kept as bounds): at 5 N the 0.3 kg
-/// carriage takes 1.51× (1.29× while the braking still counted on an opposing load estimate,
-/// `coarse.rs`) and the 5 kg one overshoots 212 nm (682 nm then); at 18 N the 0.1 kg carriage
+/// preload, overshooting under 200 nm, except (measured, kept as bounds): at 5 N the 5 kg
+/// carriage overshoots 212 nm (682 nm while the braking still counted on an opposing load
+/// estimate, `coarse.rs`); at 18 N the 0.1 kg carriage
 /// takes 2.17×: its plant is fastest at 0.8 kHz (0.73 mm/s, beside the stator's foot-clamped
 /// counterweight mode at 857 Hz), below the lowest frequency where the controller's model holds
 /// (1.2 kHz, `0x1022`), where the plant makes 0.38 mm/s, and against that speed it takes 1.12×.
 #[test]
 fn a_one_millimetre_move_settles_at_every_preload_of_the_window() {
     let exceptions = |preload_n: f64, mass_kg: f64| match (preload_n as u32, mass_kg) {
-        (5, 0.3) => (1.6, 200.0),
         (5, 5.0) => (1.25, 300.0),
         (18, 0.1) => (2.3, 200.0),
         _ => (1.25, 200.0),
@@ -433,6 +432,45 @@ fn a_one_millimetre_move_settles_at_every_preload_of_the_window() {
             let (times, overshoot_nm) = exceptions(preload_n, mass_kg);
             assert!(t <= times * limit_s, "{case}: settled in {t:.4} s, limit {limit_s:.4} s");
             assert!(r.overshoot_nm < overshoot_nm, "{case}: overshoot {:.1} nm", r.overshoot_nm);
+        }
+    }
+}
+
+/// Issue 11: 100 nm, 1 µm and 10 µm steps settle to ±1 count within 20 ms, on every carriage at
+/// 5, 10, 16 and 18 N. At 5 N the 0.3 kg carriage stopped 550 nm short of a 10 µm step with
+/// 13 V on the drive, where the model has it moving at the approach speed, and the integral
+/// alone took 89 ms (1 µm: 36 ms) to find the missing thrust; a stuck final approach now pushes
+/// harder (`coarse.rs`): 18 and 9 ms. Two kinds of case are out of reach, kept as bounds:
+/// - the 50 kg carriage's 10 µm: speeding up and braking at the plant's highest stall force
+///   over the band (`plant_stall_n`) alone take 2·√(d·M/F), 20 ms at 16 N (4.8 N) and 32 ms
+///   at 5 N (2.0 N); it takes 1.05× (5 N) to 1.35× (18 N) that, at 2.2 kHz, where the stall
+///   force is lower (3.9 N at 16 N);
+/// - the 0.1 kg carriage's 10 µm at 16 and 18 N: its model runs slow against the plant (0.51
+///   against 0.66 mm/s at 2.2 kHz, 16 N), and the move is over before the observer learns it
+///   (26 and 41 ms, measured).
+#[test]
+fn small_steps_settle_within_20_ms_on_every_carriage_at_every_preload() {
+    for preload_n in [5.0, 10.0, 16.0, 18.0] {
+        for mass_kg in host_sim::harness::sweep::MASSES_KG {
+            let mut p = Params::prototype();
+            p.slider.mass_kg = mass_kg;
+            let stall_n = host_sim::harness::sweep::plant_stall_n(&p, preload_n).0;
+            for step_nm in [100i64, 1_000, 10_000] {
+                let mut sil = ready_board(&p, controller_config(&p), preload_n).unwrap();
+                let r = run_move(&mut sil, step_nm, 0.5, 0.02);
+                let case = format!("{mass_kg} kg at {preload_n} N, {step_nm} nm");
+                let t = r.settle_time_s.unwrap_or(f64::INFINITY);
+                eprintln!("{case}: {:.1} ms", t * 1e3);
+                assert!(r.fault.is_none(), "{case}: {:?}", r.fault);
+                let bang_bang_s = 2.0 * (step_nm as f64 * 1e-9 * mass_kg / stall_n).sqrt();
+                let bound_s = match (mass_kg, step_nm, preload_n as u32) {
+                    (50.0, 10_000, _) => 1.4 * bang_bang_s,
+                    (0.1, 10_000, 16) => 0.030,
+                    (0.1, 10_000, 18) => 0.045,
+                    _ => 0.020,
+                };
+                assert!(t <= bound_s, "{case}: settled in {:.1} ms, bound {:.1} ms", t * 1e3, bound_s * 1e3);
+            }
         }
     }
 }
