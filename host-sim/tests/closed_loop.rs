@@ -258,8 +258,9 @@ fn a_move_from_a_hold_measures_the_mass_a_move_from_rest_does() {
 /// Measured before (μ right / μ 15 % low / μ 15 % low and 0.8 N unknown): first move 0.55 /
 /// 0.71 / 4.57 µm peak following error, later ones 0.9–2.8 / 2.0–2.2 / —; at kp 100 /s first
 /// 0.48 / 0.57 / 2.42, later ones 0.40–0.53 / 0.55–0.67 / 0.57–0.98; now (kp 400 /s, braking
-/// counting only the known load) first 0.36 / 0.35 / 1.71, later ones 0.19–0.34 / 0.32–0.45 /
-/// 0.35–0.50 (the second move, the first reversal, still carries its estimate: 0.5–0.65 µm). The
+/// counting only the known load, the stuck-approach push, thrust at the sine's swing) first
+/// 0.36 / 0.35 / 1.71, later ones 0.21–0.36 / 0.32–0.45 / 0.33–0.72 (the second move, the first
+/// reversal, still carries its estimate: 0.4–0.65 µm). The
 /// issue's goal, the tenth at most half the first with μ 15 % low, is not reached there (the
 /// first move, from rest with no estimate, is already near the best); it is with the unknown
 /// load, which the later moves start from.
