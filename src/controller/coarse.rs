@@ -11,6 +11,9 @@ use crate::fastmath::clamp_sym_f32;
 const APPROACH_STUCK_SHARE: f32 = 1.0;
 /// A stuck final approach adds thrust at a rate that reaches the stall force in this time (s).
 const APPROACH_RAMP_S: f32 = 0.02;
+/// ... or in this many times the time a heavy carriage takes to reach the approach speed at the
+/// stall force (the push then exceeds what was missing by at most a tenth of the stall force).
+const APPROACH_RAMP_ANSWER_TIMES: f32 = 200.0;
 
 impl Controller {
     /// The sine's peak-to-peak swing the amplifier's range leaves it (V): a hold's static offset
@@ -79,7 +82,7 @@ impl Controller {
                 // has risen by F·√(2·τ/T). A tenth of F at most asks T ≥ 200·τ (50 kg: 0.5 s; at
                 // 20 ms the 50 kg carriage overshot 1 mm against an unknown 2 N by 322 nm).
                 let answer_s = self.moving_mass_kg() * self.cfg.approach_speed_nm_s * 1e-9 / stall.max(1e-3);
-                let ramp_s = APPROACH_RAMP_S.max(200.0 * answer_s);
+                let ramp_s = APPROACH_RAMP_S.max(APPROACH_RAMP_ANSWER_TIMES * answer_s);
                 integral_rate += err_nm.signum() * stall / ramp_s;
             }
             self.integral_n = clamp_sym_f32(self.integral_n + integral_rate * self.dt_s, stall);

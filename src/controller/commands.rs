@@ -111,8 +111,7 @@ impl Controller {
         if let Some(slot) = self.last_sense.and_then(|s| self.end_bias_n.get_mut(s)) {
             *slot = Some(self.observed_bias_n + self.integral_n);
         }
-        if let [Some(plus), Some(minus)] = self.end_bias_n {
-            let common = 0.5 * (plus + minus);
+        if let Some(common) = self.shared_load_n() {
             self.observed_bias_n = common;
             self.integral_n = 0.0;
             self.thrust_bias_n = common;
@@ -124,9 +123,14 @@ impl Controller {
     /// of their end estimates, [`Self::start_load_estimate`]), else the told one. Braking counts
     /// on it, not on the rest of the estimate.
     pub(super) fn known_load_n(&self) -> f32 {
+        self.shared_load_n().unwrap_or(self.cfg.expected_load_n)
+    }
+
+    /// The mean of the end estimates of the last move each way (N along +x), once both exist.
+    fn shared_load_n(&self) -> Option<f32> {
         match self.end_bias_n {
-            [Some(plus), Some(minus)] => 0.5 * (plus + minus),
-            _ => self.cfg.expected_load_n,
+            [Some(plus), Some(minus)] => Some(0.5 * (plus + minus)),
+            _ => None,
         }
     }
 
