@@ -78,3 +78,41 @@ fn without_a_table_a_move_is_accepted_but_the_drive_stays_quiet() {
     }
     assert!(ctl.reference_nm() > 0);
 }
+
+/// Issue 11: the drive frequency is chosen where the model has the carriage fastest against the
+/// load; where the load is past the model's stall force at every candidate, the model has no
+/// speed to rank them by, and the frequency in use stays (a 50 kg carriage at 5 N switched from
+/// 2.2 to 1.8 kHz on such a non-ranking and faulted).
+#[test]
+fn past_the_models_stall_force_the_frequency_in_use_stays() {
+    let ctl = controller_at(WORD_16_N);
+    let request = ctl.model_request().unwrap();
+    let c = request.choice;
+    assert!(c.len > 3, "the default offers a choice of frequencies");
+    let tables: Vec<ModelTable> = (0..c.len)
+        .map(|k| {
+            let mut r = request;
+            r.frequency_hz = c.frequency_hz[k];
+            r.per_volt = c.per_volt[k];
+            r.choice.len = 1;
+            r.choice.frequency_hz[0] = c.frequency_hz[k];
+            r.choice.per_volt[0] = c.per_volt[k];
+            ModelTable::build(&r)
+        })
+        .collect();
+    // A middle candidate in use.
+    let mut in_use = request;
+    in_use.frequency_hz = c.frequency_hz[3];
+    in_use.per_volt = c.per_volt[3];
+    // Against no load the build goes where its table is fastest (within the table's 1 %).
+    let fastest = tables.iter().map(|t| t.no_load_mm_s()).fold(0.0f32, f32::max);
+    let free = in_use.chosen();
+    let k = (0..c.len).find(|&k| c.frequency_hz[k] == free.frequency_hz).unwrap();
+    assert!(tables[k].no_load_mm_s() >= 0.99 * fastest, "chose {} Hz", free.frequency_hz);
+    // Against twice the highest stall force of any candidate, the one in use stays.
+    let beyond = 2.0 * tables.iter().map(|t| t.stall_n()).fold(0.0f32, f32::max);
+    in_use.choice.load_n = beyond;
+    let stuck = in_use.chosen();
+    assert_eq!(stuck.frequency_hz, c.frequency_hz[3], "against {beyond} N");
+    assert_eq!(stuck.per_volt, c.per_volt[3]);
+}

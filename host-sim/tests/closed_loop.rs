@@ -101,6 +101,28 @@ fn a_load_above_stall_trips_stall_detection_and_leaves_the_drive_safe() {
     assert_eq!(sil.controller.state(), State::Idle);
 }
 
+/// A load told to the controller above what the model has the motor push leaves the model no
+/// speed for the profile. Under plain feedback the profile then never started and the move hung,
+/// no fault, the drive at a fraction of full (0.1 kg at 16 N against a told 2 N, its plant
+/// stalling at 0.9 N). The profile crawls on instead, and the full drive that builds up behind
+/// it is judged a stall, with or without the feedforward.
+#[test]
+fn a_told_load_above_stall_faults_rather_than_hang_the_move() {
+    for feedforward in [false, true] {
+        let mut p = Params::prototype();
+        p.slider.mass_kg = 0.1;
+        let mut cfg = controller_config(&p);
+        cfg.feedforward = feedforward;
+        cfg.expected_load_n = 2.0;
+        let mut sil = ready_board(&p, cfg, 16.0).unwrap();
+        sil.set_load(ExternalLoad::opposing(2.0, 1));
+        sil.controller.move_to(1_000_000).unwrap();
+        let (code, out) = until_fault(&mut sil, 2.0);
+        assert_eq!(code, FaultCode::Stall, "feedforward {feedforward}");
+        assert_safe(&out);
+    }
+}
+
 #[test]
 fn an_encoder_jump_trips_its_fault_and_leaves_the_drive_safe() {
     let (_, mut sil) = board(16.0);
@@ -383,32 +405,47 @@ fn against_an_unknown_load_above_the_top_frequencys_stall_the_drive_moves_to_one
     assert!(back.fault.is_none() && back.drive_frequency_hz == 2200.0, "{back:?}");
 }
 
-/// Issue 11: loads up to 70 % of the plant's stall force, not told to the controller. The load is
-/// 70 % of the highest stall force each plant has over 0.5–2.2 kHz (measured on the plant,
-/// `sweep::plant_stall_n`): 0.63 / 2.50 / 2.95 / 3.58 / 3.37 N for 0.1 / 0.3 / 1 / 5 / 50 kg.
-/// Every carriage settles with no fault; the 5 and 50 kg ones drive at 1.2 kHz for it (their
-/// stall at 2.2 kHz is 3.9 N). The 0.1–1 kg carriages overshoot under 200 nm (measured 6 / 67 /
-/// 82 nm). The 5 and 50 kg ones overshoot erratically, 20–995 nm over loads of 3.30–3.60 N (394 /
-/// 29 nm here): they cruise up to 0.9 µm ahead of the reference at full drive and brake from
-/// there. Held as a regression bound of 1.5 µm; issue 11 is open on it.
+/// Issue 11: loads up to 70 % of the plant's stall force, not told to the controller, at every
+/// preload of the window (5, 10, 16, 18 N). The load is 70 % of the highest stall force each
+/// plant has over 0.5–2.2 kHz at that preload (measured on the plant, `sweep::plant_stall_n`; at
+/// 16 N 0.63 / 2.50 / 2.95 / 3.58 / 3.37 N for 0.1 / 0.3 / 1 / 5 / 50 kg). Every carriage
+/// settles with no fault, given three times the plant's own limit against that load
+/// (`sweep::loaded_limit_s`: 0.1 kg at 18 N crawls at 0.12 mm/s and takes 8.7 s against a
+/// limit of 7.9). Before the frequency trial (`frequency.rs`) the 50 kg carriage faulted at 5
+/// and 10 N: its observer read the model's thrust error as load past the model's stall force,
+/// and the model, ranking frequencies where it cannot, switched to 1.2 kHz, where the plant
+/// barely moves. The 0.1–1 kg carriages overshoot under 200 nm, except the 0.1 kg one at 5 N,
+/// 360 nm (its load is near what the foot holds when the drive stops; bound 450). The 5 and
+/// 50 kg ones overshoot erratically, 20–995 nm over loads of 3.30–3.60 N at 16 N: they cruise
+/// up to 0.9 µm ahead of the reference at full drive and brake from there. Held as a
+/// regression bound of 1.5 µm; issue 11 is open on it.
 #[test]
 fn unknown_loads_at_70_percent_of_each_plants_stall_settle_without_a_fault() {
-    for mass_kg in host_sim::harness::sweep::MASSES_KG {
-        let mut p = Params::prototype();
-        p.slider.mass_kg = mass_kg;
-        let (stall_n, _) = host_sim::harness::sweep::plant_stall_n(&p, 16.0);
-        let load_n = 0.7 * stall_n;
-        let mut sil = ready_board(&p, controller_config(&p), 16.0).unwrap();
-        sil.set_load(ExternalLoad::opposing(load_n, 1));
-        let r = run_move(&mut sil, 1_000_000, 10.0, 0.05);
-        let case = format!("{mass_kg} kg against {load_n:.2} N");
-        eprintln!(
-            "{case}: settle {:?} s, overshoot {:.1} nm, {} Hz",
-            r.settle_time_s, r.overshoot_nm, r.drive_frequency_hz
-        );
-        assert!(r.fault.is_none() && r.settle_time_s.is_some(), "{case}: {r:?}");
-        let bound = if mass_kg <= 1.0 { 200.0 } else { 1500.0 };
-        assert!(r.overshoot_nm < bound, "{case}: overshoot {:.1} nm", r.overshoot_nm);
+    for preload_n in [5.0, 10.0, 16.0, 18.0] {
+        for mass_kg in host_sim::harness::sweep::MASSES_KG {
+            let mut p = Params::prototype();
+            p.slider.mass_kg = mass_kg;
+            let (stall_n, _) = host_sim::harness::sweep::plant_stall_n(&p, preload_n);
+            let load_n = 0.7 * stall_n;
+            let limit_s = host_sim::harness::sweep::loaded_limit_s(&p, 1e-3, preload_n, load_n, stall_n)
+                .expect("the plant moves against 70 % of its stall force");
+            let mut sil = ready_board(&p, controller_config(&p), preload_n).unwrap();
+            sil.set_load(ExternalLoad::opposing(load_n, 1));
+            let r = run_move(&mut sil, 1_000_000, 3.0 * limit_s, 0.05);
+            let case = format!("{mass_kg} kg at {preload_n} N against {load_n:.2} N");
+            eprintln!(
+                "{case}: settle {:?} s (limit {limit_s:.3} s), overshoot {:.1} nm, {} Hz",
+                r.settle_time_s, r.overshoot_nm, r.drive_frequency_hz
+            );
+            let outcome = (r.fault.as_ref().map(|f| f.text), r.settle_time_s, r.final_error_nm);
+            assert!(r.fault.is_none() && r.settle_time_s.is_some(), "{case}: {outcome:?}");
+            let bound = match (preload_n as u32, mass_kg) {
+                (5, 0.1) => 450.0,
+                (_, m) if m <= 1.0 => 200.0,
+                _ => 1500.0,
+            };
+            assert!(r.overshoot_nm < bound, "{case}: overshoot {:.1} nm", r.overshoot_nm);
+        }
     }
 }
 

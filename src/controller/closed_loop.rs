@@ -11,12 +11,22 @@ use super::{Controller, Mode, State};
 /// 1 mm by 470 nm. Spread over this many periods it stops within a count; a heavy carriage's
 /// stall-limited braking is gentler than this anyway.
 const BRAKE_MIN_DRIVE_PERIODS: f32 = 20.0;
+/// The profile's lowest speed limit, as a share of the approach speed (see `regulate`).
+const PROFILE_CRAWL_SHARE: f32 = 0.1;
 /// Floor of the braking limit (nm/s²) while the model has no speed yet.
 const MIN_BRAKE_NM_S2: f32 = 1.0e6;
 
 impl Controller {
     pub(super) fn regulate(&mut self) {
-        let mut v_max = self.speed_limit_nm_s();
+        // Never below a crawl: a load estimate at or past the model's stall force (told, or
+        // learned) leaves the model no speed at all, and a profile that cannot start hangs the
+        // move with the drive short of full, where no stall is judged (plain feedback against a
+        // told 2 N on 0.1 kg sat still for good). Crawling on, either the slider follows or the
+        // full drive it gets is judged a stall. Without a table there is no model to move by:
+        // the profile stays.
+        let crawl =
+            if self.model.table.is_some() { PROFILE_CRAWL_SHARE * self.cfg.approach_speed_nm_s } else { 0.0 };
+        let mut v_max = self.speed_limit_nm_s().max(crawl);
         // A reference running away from a slider that cannot follow (an unknown load, a preload
         // change) only builds following error: past some lag the profile waits for the slider.
         let lag =
@@ -48,6 +58,7 @@ impl Controller {
         if self.state() == State::Moving && self.profile.done() {
             self.enter_hold();
         }
+        self.judge_frequency_trial();
         let pos = self.position_nm();
         let err = (self.profile.position_nm() - pos) as f32;
         let to_target = (self.profile.target_nm() - pos) as f32;

@@ -86,6 +86,8 @@ impl Controller {
         // profile's feet would arrive with speed left over.
         self.decel_nm_s2 = self.accel_limit_nm_s2();
         self.speedup = Some(SpeedUp::start());
+        self.frequency_trial = None;
+        self.pinned_frequency_hz = None;
         self.max_following_error_nm = 0.0;
         self.on_target_s = 0.0;
         self.activity = Activity::Moving;

@@ -212,6 +212,10 @@ pub struct Controller {
     drive_v: f32,
     max_following_error_nm: f32,
     accel_ref_nm_s2: f32,
+    /// A frequency the model switched to during this move, on trial ([`frequency`]) ...
+    frequency_trial: Option<frequency::FrequencyTrial>,
+    /// ... and the one the move went back to when the trial failed, kept to the move's end.
+    pinned_frequency_hz: Option<f32>,
     /// Fine-mode corrections in a row the encoder missed (carried across fine-mode entries: a
     /// frozen encoder sends the fine mode out of stroke and back through the coarse mode).
     fine_misses: u32,
@@ -265,6 +269,8 @@ impl Controller {
             drive_v: 0.0,
             max_following_error_nm: 0.0,
             accel_ref_nm_s2: 0.0,
+            frequency_trial: None,
+            pinned_frequency_hz: None,
             fine_misses: 0,
             observed_bias_n: cfg.expected_load_n,
             end_bias_n: [None; 2],

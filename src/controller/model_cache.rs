@@ -495,19 +495,31 @@ impl Controller {
         // moved ([`super::frequency`]); else a table for a new preload keeps it.
         let load_n = self.choice_load_n();
         let kept = self.model.table.as_ref().filter(|t| self.keeps_frequency(t, load_n));
-        let choice = match kept {
-            Some(t) if (preload_n - t.request().preload_n).abs() <= PRELOAD_RESOLVE_N => return None,
-            Some(t) => t.request().choice,
-            None => {
+        let pinned =
+            self.pinned_frequency_hz.filter(|&f| kept.is_some_and(|t| t.request().frequency_hz != f));
+        let choice = match (kept, pinned) {
+            // Back to the frequency a failed trial left ([`super::frequency`]).
+            (_, Some(f)) => FrequencyChoice::fixed(f, self.cfg.per_volt_at(f), load_n),
+            (Some(t), _) if (preload_n - t.request().preload_n).abs() <= PRELOAD_RESOLVE_N => return None,
+            (Some(t), _) => t.request().choice,
+            (None, _) => {
                 let (lowest, highest) = (self.cfg.drive_freq_min_hz, self.cfg.drive_freq_hz);
                 FrequencyChoice::between(lowest, highest, load_n, |f| self.cfg.per_volt_at(f))
             }
         };
+        // The request's own frequency is where the build stays when the model can rank no
+        // candidate ([`ModelRequest::chosen`]): the one in use, else the highest.
+        let (frequency_hz, per_volt) = match self.model.table.as_ref() {
+            Some(t) if choice.len > 1 && t.request().generation == self.model.generation => {
+                (t.request().frequency_hz, t.request().per_volt)
+            }
+            _ => (choice.frequency_hz[0], choice.per_volt[0]),
+        };
         Some(ModelRequest {
-            per_volt: choice.per_volt[0],
+            per_volt,
             preload_n,
             max_drive_v: self.cfg.max_drive_v,
-            frequency_hz: choice.frequency_hz[0],
+            frequency_hz,
             choice,
             moving_mass_kg: self.cfg.moving_mass_kg,
             rail_coulomb_n: self.cfg.rail_coulomb_n,
@@ -529,7 +541,9 @@ impl Controller {
             && r.rail_coulomb_n == self.cfg.rail_coulomb_n
             && r.rail_viscous_n_s_per_m == self.cfg.rail_viscous_n_s_per_m;
         if current {
+            let old_hz = self.coarse_frequency_hz();
             self.model.table = Some(table);
+            self.frequency_switched(old_hz, r.frequency_hz);
         }
         current
     }

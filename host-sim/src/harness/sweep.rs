@@ -47,7 +47,8 @@ pub struct SweepRow {
     /// Opposing load of the move (N).
     pub load_n: f64,
     pub settle_time_s: Option<f64>,
-    /// Settle time over the plant's physical limit (1 mm moves without load only).
+    /// Settle time over the plant's physical limit against the move's load (1 mm moves, where
+    /// the plant moves against the load).
     pub limit_ratio: Option<f64>,
     pub overshoot_nm: f64,
     pub max_following_error_um: f64,
@@ -62,17 +63,33 @@ pub const DEFAULT_PRELOAD_N: f64 = 16.0;
 /// The plant's physical limit for a move of `distance_m` at `preload_n` (s), and the frequency of
 /// its highest no-load speed (Hz).
 pub fn physical_limit_s(p: &Params, distance_m: f64, preload_n: f64) -> (f64, f64) {
-    let freqs: Vec<f64> = (5..=22).map(|k| 100.0 * f64::from(k)).collect();
-    let (best_f, best_v) = freqs
-        .par_iter()
-        .map(|&f| (f, steady_speed_m_s(p, preload_n, 100.0, f, 1, 0.0)))
-        .collect::<Vec<_>>()
-        .into_iter()
-        .fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a });
+    let (best_f, best_v) = fastest_against(p, preload_n, 0.0);
     let op = OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz: best_f };
     let stall = ThrustModel::new(p, op).stall_force_n().max(1e-9);
     let speed_up_s = p.slider.mass_kg * best_v / stall;
     (distance_m / best_v.max(1e-9) + speed_up_s, best_f)
+}
+
+/// The plant's physical limit for a move of `distance_m` against an opposing `load_n` (s): the
+/// distance over the highest steady speed the plant reaches against that load at 100 V over
+/// 0.5–2.2 kHz, plus the time to reach it with what the plant's highest stall force `stall_n`
+/// leaves over the load. None where the plant does not move against the load.
+pub fn loaded_limit_s(p: &Params, distance_m: f64, preload_n: f64, load_n: f64, stall_n: f64) -> Option<f64> {
+    let (_, best_v) = fastest_against(p, preload_n, load_n);
+    let spare_n = stall_n - load_n;
+    (best_v >= MOVING_M_S && spare_n > 0.0).then(|| distance_m / best_v + p.slider.mass_kg * best_v / spare_n)
+}
+
+/// The frequency (Hz) where the time-domain plant runs fastest at 100 V against `load_n`, over
+/// 0.5–2.2 kHz in 100 Hz steps, and that speed (m/s).
+fn fastest_against(p: &Params, preload_n: f64, load_n: f64) -> (f64, f64) {
+    let freqs: Vec<f64> = (5..=22).map(|k| 100.0 * f64::from(k)).collect();
+    freqs
+        .par_iter()
+        .map(|&f| (f, steady_speed_m_s(p, preload_n, 100.0, f, 1, load_n)))
+        .collect::<Vec<_>>()
+        .into_iter()
+        .fold((0.0, 0.0), |a, b| if b.1 > a.1 { b } else { a })
 }
 
 /// A frequency at which the plant runs slower than this unloaded has no stall force worth the
@@ -117,6 +134,7 @@ fn one(
     load_n: f64,
     known: bool,
     feedforward: bool,
+    limit_s: Option<f64>,
 ) -> anyhow::Result<MoveResult> {
     let mut cfg = controller_config(p);
     cfg.feedforward = feedforward;
@@ -125,7 +143,9 @@ fn one(
     }
     let mut sil = ready_board(p, cfg, preload_n)?;
     sil.set_load(ExternalLoad::opposing(load_n, 1));
-    let max_s = 3.0 + 5.0 * to_um * 1e-6 / 2.0e-3;
+    // Time enough for a plant that a load slows to a crawl (0.1 kg at 18 N against 0.5 N makes
+    // 0.12 mm/s: 8.5 s for 1 mm).
+    let max_s = (3.0 + 5.0 * to_um * 1e-6 / 2.0e-3).max(3.0 * limit_s.unwrap_or(0.0));
     Ok(run_move(&mut sil, (to_um * 1e3).round() as i64, max_s, 0.05))
 }
 
@@ -160,10 +180,14 @@ pub fn run(
             };
             let mut q = p.clone();
             q.slider.mass_kg = masses[i];
-            let r = one(&q, preload_n, to_um, load_n, known, ff)?;
+            let limit_s = if load_n == 0.0 {
+                Some(limits[i])
+            } else {
+                loaded_limit_s(&q, to_um * 1e-6, preload_n, load_n, stalls[i])
+            };
+            let r = one(&q, preload_n, to_um, load_n, known, ff, limit_s)?;
             progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, total);
-            let limit_ratio =
-                (to_um == 1000.0 && load_n == 0.0).then(|| r.settle_time_s.map(|t| t / limits[i])).flatten();
+            let limit_ratio = limit_s.filter(|_| to_um == 1000.0).zip(r.settle_time_s).map(|(l, t)| t / l);
             Ok(SweepRow {
                 slider_mass_kg: masses[i],
                 mv: label.to_string(),
