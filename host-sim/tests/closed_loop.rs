@@ -474,22 +474,25 @@ fn holding_stays_within_one_count_for_a_second_under_a_1_n_load_step() {
 
 /// Issue 11 item 1: preloads 5–20 N. The window ends at the preload where full drive still lifts
 /// the foot off (18.4 N on the prototype, `0x1010`; above it the controller refuses to move, as
-/// `a_preload_below_the_window_is_refused` shows at the other end). At 5, 10 and 18 N, on every
-/// carriage of the sweep, a 1 mm move settles within 1.25× that plant's physical limit at that
-/// preload, overshooting under 200 nm, except (measured, kept as bounds): at 5 N the 5 kg
+/// `a_preload_below_the_window_is_refused` shows at the other end). At 5, 10, 16 and 18 N, on
+/// every carriage of the sweep, a 1 mm move settles within 1.25× that plant's physical limit at
+/// that preload, overshooting under 200 nm, except (measured, kept as bounds): at 5 N the 5 kg
 /// carriage overshoots 212 nm (682 nm while the braking still counted on an opposing load
-/// estimate, `coarse.rs`); at 18 N the 0.1 kg carriage
-/// takes 2.17×: its plant is fastest at 0.8 kHz (0.73 mm/s, beside the stator's foot-clamped
-/// counterweight mode at 857 Hz), below the lowest frequency where the controller's model holds
-/// (1.2 kHz, `0x1022`), where the plant makes 0.38 mm/s, and against that speed it takes 1.12×.
+/// estimate, `coarse.rs`); the 0.1 kg carriage's plant is fastest below the lowest frequency
+/// where the controller's model holds (1.2 kHz, `0x1022`; the stator's foot-clamped
+/// counterweight mode is at 857 Hz): at 16 N it makes 0.78 mm/s at 0.7 kHz against 0.66 at
+/// 2.2 kHz, where the best the drive can do is 1.18× and the controller, cruising at 0.63 mm/s
+/// with the drive at 97 V, takes 1.26× (199 nm overshoot); at 18 N 0.73 mm/s at 0.8 kHz
+/// against 0.38 at 1.2 kHz: 2.17× (1.12× against that speed).
 #[test]
 fn a_one_millimetre_move_settles_at_every_preload_of_the_window() {
     let exceptions = |preload_n: f64, mass_kg: f64| match (preload_n as u32, mass_kg) {
         (5, 5.0) => (1.25, 300.0),
+        (16, 0.1) => (1.3, 210.0),
         (18, 0.1) => (2.3, 200.0),
         _ => (1.25, 200.0),
     };
-    for preload_n in [5.0, 10.0, 18.0] {
+    for preload_n in [5.0, 10.0, 16.0, 18.0] {
         for mass_kg in host_sim::harness::sweep::MASSES_KG {
             let mut p = Params::prototype();
             p.slider.mass_kg = mass_kg;
