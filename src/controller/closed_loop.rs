@@ -75,12 +75,7 @@ impl Controller {
         let fine_room_nm = self.fine_room_v() * self.model.fine_nm_per_v;
         match self.mode {
             Mode::Coarse => {
-                let nm_per_v = self.model.fine_nm_per_v.max(1e-3);
-                let fits = (self.fine_offset_v + to_target / nm_per_v).abs() < 0.9 * self.fine_room_v();
-                if self.profile.done()
-                    && fits
-                    && to_target.abs() < self.cfg.fine_window_nm.min(0.8 * fine_room_nm)
-                {
+                if self.profile.done() && self.fine_takes(to_target) {
                     self.mode = Mode::FineEntering;
                     self.generator.set_amplitude_v(0.0);
                     self.drive_v = 0.0;
@@ -103,6 +98,15 @@ impl Controller {
                 self.fine(err);
             }
         }
+    }
+
+    /// Whether the fine mode's static stroke takes a move of `to_target_nm` from here: within the
+    /// fine window and, with the offset already on the stacks, inside the stroke with margin.
+    pub(super) fn fine_takes(&self, to_target_nm: f32) -> bool {
+        let nm_per_v = self.model.fine_nm_per_v.max(1e-3);
+        let fine_room_nm = self.fine_room_v() * self.model.fine_nm_per_v;
+        let fits = (self.fine_offset_v + to_target_nm / nm_per_v).abs() < 0.9 * self.fine_room_v();
+        fits && to_target_nm.abs() < self.cfg.fine_window_nm.min(0.8 * fine_room_nm)
     }
 
     /// Highest profile speed: the model's speed at full drive against the estimated load in the
