@@ -546,7 +546,14 @@ fn a_one_millimetre_move_settles_at_every_preload_of_the_window() {
 ///   force is lower (3.9 N at 16 N);
 /// - the 0.1 kg carriage's 10 µm at 16 and 18 N: its model runs slow against the plant (0.51
 ///   against 0.66 mm/s at 2.2 kHz, 16 N), and the move is over before the observer learns it
-///   (26 and 41 ms, measured).
+///   (24.5 and 38 ms, measured; 26 and 41 before the hand-over below).
+///
+/// Light carriages (0.1 and 0.3 kg) also overshoot no step by more than two counts. In the
+/// coarse mode such a carriage rides the foot and swings with it within each drive period by up
+/// to the foot's stroke (about 300 nm at full drive): its 1 and 10 µm steps overshot 180–440 nm.
+/// It is now handed to the fine mode while still moving, as soon as the sine's end stops it
+/// where the fine stroke reaches the target even with the swing either way (`closed_loop.rs`):
+/// 1–60 nm.
 #[test]
 fn small_steps_settle_within_20_ms_on_every_carriage_at_every_preload() {
     for preload_n in [5.0, 10.0, 16.0, 18.0] {
@@ -564,11 +571,14 @@ fn small_steps_settle_within_20_ms_on_every_carriage_at_every_preload() {
                 let bang_bang_s = 2.0 * (step_nm as f64 * 1e-9 * mass_kg / stall_n).sqrt();
                 let bound_s = match (mass_kg, step_nm, preload_n as u32) {
                     (50.0, 10_000, _) => 1.4 * bang_bang_s,
-                    (0.1, 10_000, 16) => 0.030,
-                    (0.1, 10_000, 18) => 0.045,
+                    (0.1, 10_000, 16) => 0.027,
+                    (0.1, 10_000, 18) => 0.042,
                     _ => 0.020,
                 };
                 assert!(t <= bound_s, "{case}: settled in {:.1} ms, bound {:.1} ms", t * 1e3, bound_s * 1e3);
+                if mass_kg <= 0.3 {
+                    assert!(r.overshoot_nm < 100.0, "{case}: overshoot {:.0} nm", r.overshoot_nm);
+                }
             }
         }
     }

@@ -13,6 +13,10 @@ use super::{Controller, Mode, State};
 const BRAKE_MIN_DRIVE_PERIODS: f32 = 20.0;
 /// The profile's lowest speed limit, as a share of the approach speed (see `regulate`).
 const PROFILE_CRAWL_SHARE: f32 = 0.1;
+/// A moving carriage is handed to the fine mode early only while the stop its sine's end gives
+/// it is at most this share of the fine window (0.5 and 1 were tried: no smaller overshoot, and
+/// the 50 kg carriage's 1 and 10 µm steps took up to 40 % longer).
+const STOP_SHARE_OF_FINE_WINDOW: f32 = 0.25;
 /// Floor of the braking limit (nm/s²) while the model has no speed yet.
 const MIN_BRAKE_NM_S2: f32 = 1.0e6;
 
@@ -75,7 +79,19 @@ impl Controller {
         let fine_room_nm = self.fine_room_v() * self.model.fine_nm_per_v;
         match self.mode {
             Mode::Coarse => {
-                if self.profile.done() && self.fine_takes(to_target) {
+                // A light carriage rides the foot and swings with it within each drive period (up
+                // to ~300 nm at full drive): finishing in the coarse mode, its 1 and 10 µm steps
+                // overshot by the swing (180–440 nm). It goes to the fine mode while it still
+                // moves, once the sine's end stops it where the fine stroke reaches the target
+                // whichever way the swing leaves it (1–60 nm).
+                let early = || {
+                    self.stop_with_sine_quiet_nm().is_some_and(|stop| {
+                        let swing = self.model.table.as_ref().map_or(0.0, |t| t.swing_nm(self.drive_v));
+                        let rest = to_target - stop;
+                        self.fine_takes(rest + swing) && self.fine_takes(rest - swing)
+                    })
+                };
+                if (self.profile.done() && self.fine_takes(to_target)) || early() {
                     self.mode = Mode::FineEntering;
                     self.generator.set_amplitude_v(0.0);
                     self.drive_v = 0.0;
@@ -98,6 +114,17 @@ impl Controller {
                 self.fine(err);
             }
         }
+    }
+
+    /// Where the slider stops if its sine stops now (nm from here, along its speed), while that
+    /// stop is short enough to trust: the still foot's friction μ·F0 brakes the moving mass over
+    /// M·v²/(2·μ·F0).
+    fn stop_with_sine_quiet_nm(&self) -> Option<f32> {
+        let v_m_s = self.speed_nm_s.abs().max(self.profile.velocity_nm_s().abs()) * 1e-9;
+        let grip_n = self.preload.force_n().max(0.0) * self.cfg.mu_dynamic;
+        let stop_nm = self.moving_mass_kg() * v_m_s * v_m_s / (2.0 * grip_n.max(1e-3)) * 1e9;
+        (self.state() == State::Moving && stop_nm < STOP_SHARE_OF_FINE_WINDOW * self.cfg.fine_window_nm)
+            .then(|| stop_nm * self.speed_nm_s.signum())
     }
 
     /// Whether the fine mode's static stroke takes a move of `to_target_nm` from here: within the

@@ -284,6 +284,22 @@ impl ModelTable {
         &self.request
     }
 
+    /// How far the carriage swings about its mean line within a drive period at `volts` of drive
+    /// (nm): a carriage that sticks to the foot follows its whole stroke Xc = ω·Xc/ω (eqs. 8–9); a
+    /// heavier one only as far as the friction impulse carries it, and friction is at most μ·Fc
+    /// with Fc averaging the preload over the period (eq. 12): about μ·F0/(M·ω²). On the plant
+    /// at 16 N (0.05–5 kg, 1.2 and 2.2 kHz, 30–100 V) the swing is 0.4–1.0× this where the
+    /// stroke sets it and 0.7–1.2× where the impulse does (`fixed_model.rs`).
+    pub fn swing_nm(&self, volts: f32) -> f32 {
+        let r = &self.request;
+        let omega = core::f32::consts::TAU * r.frequency_hz.max(1.0);
+        let stroke_nm = self.foot_mm_s_per_v * volts.max(0.0) * 1e6 / omega;
+        let impulse_nm = r.per_volt.mu.to_num::<f32>() * r.preload_n.max(0.0)
+            / (r.moving_mass_kg.max(1e-3) * omega * omega)
+            * 1e9;
+        stroke_nm.min(impulse_nm)
+    }
+
     /// Stall force at full drive (N).
     pub fn stall_n(&self) -> f32 {
         self.stall_n
