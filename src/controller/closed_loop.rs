@@ -85,7 +85,7 @@ impl Controller {
                 // moves, once the sine's end stops it where the fine stroke reaches the target
                 // whichever way the swing leaves it (1–60 nm).
                 let early = || {
-                    self.stop_with_sine_quiet_nm().is_some_and(|stop| {
+                    self.stop_with_sine_quiet_nm(to_target).is_some_and(|stop| {
                         let swing = self.model.table.as_ref().map_or(0.0, |t| t.swing_nm(self.drive_v));
                         let rest = to_target - stop;
                         self.fine_takes(rest + swing) && self.fine_takes(rest - swing)
@@ -116,15 +116,20 @@ impl Controller {
         }
     }
 
-    /// Where the slider stops if its sine stops now (nm from here, along its speed), while that
-    /// stop is short enough to trust: the still foot's friction μ·F0 brakes the moving mass over
-    /// M·v²/(2·μ·F0).
-    fn stop_with_sine_quiet_nm(&self) -> Option<f32> {
+    /// Where the slider stops if its sine stops now (nm from here, along its speed): the still
+    /// foot's friction μ·F0 brakes the moving mass over M·v²/(2·μ·F0). Only while moving and near
+    /// enough the target for the fine mode to take what is left, and only while that stop is short
+    /// enough to trust.
+    fn stop_with_sine_quiet_nm(&self, to_target_nm: f32) -> Option<f32> {
+        let window = self.cfg.fine_window_nm;
+        if self.state() != State::Moving || to_target_nm.abs() > (1.0 + STOP_SHARE_OF_FINE_WINDOW) * window {
+            return None;
+        }
         let v_m_s = self.speed_nm_s.abs().max(self.profile.velocity_nm_s().abs()) * 1e-9;
         let grip_n = self.preload.force_n().max(0.0) * self.cfg.mu_dynamic;
-        let stop_nm = self.moving_mass_kg() * v_m_s * v_m_s / (2.0 * grip_n.max(1e-3)) * 1e9;
-        (self.state() == State::Moving && stop_nm < STOP_SHARE_OF_FINE_WINDOW * self.cfg.fine_window_nm)
-            .then(|| stop_nm * self.speed_nm_s.signum())
+        let stop_nm = self.moving_mass_kg() * v_m_s * v_m_s * 1e9;
+        (stop_nm < STOP_SHARE_OF_FINE_WINDOW * window * 2.0 * grip_n)
+            .then(|| stop_nm / (2.0 * grip_n) * self.speed_nm_s.signum())
     }
 
     /// Whether the fine mode's static stroke takes a move of `to_target_nm` from here: within the

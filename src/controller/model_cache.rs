@@ -89,6 +89,31 @@ pub struct ModelTable {
     stall_n: f32,
     /// Forward speed at full drive against an opposing load `stall_n · k / (LOAD_POINTS − 1)`.
     speed_mm_s: [f32; LOAD_POINTS],
+    swing: Swing,
+}
+
+/// How far the carriage swings about its mean line within a drive period: a carriage that sticks
+/// to the foot follows its whole stroke Xc = ω·Xc/ω (eqs. 8–9, per volt); a heavier one only as
+/// far as the friction impulse carries it, and friction is at most μ·Fc with Fc averaging the
+/// preload over the period (eq. 12): about μ·F0/(M·ω²). On the plant at 16 and 18 N (0.05–5 kg,
+/// 1.2 and 2.2 kHz, 30–100 V) the swing is 0.6–1.2× the smaller of the two
+/// (`host-sim/tests/steady_inertia.rs`).
+#[derive(Debug, Clone, Copy)]
+struct Swing {
+    stroke_nm_per_v: f32,
+    impulse_nm: f32,
+}
+
+impl Swing {
+    fn of(r: &ModelRequest) -> Self {
+        let omega = core::f32::consts::TAU * r.frequency_hz.max(1.0);
+        let foot_mm_s_per_v: f32 = r.per_volt.foot_speed_mm_s_per_v.to_num();
+        let mu: f32 = r.per_volt.mu.to_num();
+        Swing {
+            stroke_nm_per_v: foot_mm_s_per_v * 1e6 / omega,
+            impulse_nm: mu * r.preload_n.max(0.0) / (r.moving_mass_kg.max(1e-3) * omega * omega) * 1e9,
+        }
+    }
 }
 
 /// Grid columns per radian of φp.
@@ -277,6 +302,7 @@ impl ModelTable {
             foot_mm_s_per_v: request.per_volt.foot_speed_mm_s_per_v.to_num(),
             stall_n,
             speed_mm_s,
+            swing: Swing::of(request),
         }
     }
 
@@ -285,19 +311,9 @@ impl ModelTable {
     }
 
     /// How far the carriage swings about its mean line within a drive period at `volts` of drive
-    /// (nm): a carriage that sticks to the foot follows its whole stroke Xc = ω·Xc/ω (eqs. 8–9); a
-    /// heavier one only as far as the friction impulse carries it, and friction is at most μ·Fc
-    /// with Fc averaging the preload over the period (eq. 12): about μ·F0/(M·ω²). On the plant
-    /// at 16 N (0.05–5 kg, 1.2 and 2.2 kHz, 30–100 V) the swing is 0.4–1.0× this where the
-    /// stroke sets it and 0.7–1.2× where the impulse does (`fixed_model.rs`).
+    /// (nm, [`Swing`]).
     pub fn swing_nm(&self, volts: f32) -> f32 {
-        let r = &self.request;
-        let omega = core::f32::consts::TAU * r.frequency_hz.max(1.0);
-        let stroke_nm = self.foot_mm_s_per_v * volts.max(0.0) * 1e6 / omega;
-        let impulse_nm = r.per_volt.mu.to_num::<f32>() * r.preload_n.max(0.0)
-            / (r.moving_mass_kg.max(1e-3) * omega * omega)
-            * 1e9;
-        stroke_nm.min(impulse_nm)
+        (self.swing.stroke_nm_per_v * volts.max(0.0)).min(self.swing.impulse_nm)
     }
 
     /// Stall force at full drive (N).
