@@ -84,14 +84,20 @@ impl Controller {
                 // overshot by the swing (180–440 nm). It goes to the fine mode while it still
                 // moves, once the sine's end stops it where the fine stroke reaches the target
                 // whichever way the swing leaves it (1–60 nm).
-                let early = || {
-                    self.stop_with_sine_quiet_nm(to_target).is_some_and(|stop| {
+                let early = !self.profile.done()
+                    && self.stop_with_sine_quiet_nm(to_target).is_some_and(|stop| {
                         let swing = self.model.table.as_ref().map_or(0.0, |t| t.swing_nm(self.drive_v));
                         let rest = to_target - stop;
                         self.fine_takes(rest + swing) && self.fine_takes(rest - swing)
-                    })
-                };
-                if (self.profile.done() && self.fine_takes(to_target)) || early() {
+                    });
+                if early {
+                    // The coarse part is over: the reference waits at the target instead of the
+                    // fine mode chasing its last few hundred nm (a carriage ahead of it stepped
+                    // back first; 10 µm steps of 0.1 and 0.3 kg took up to 5 ms longer).
+                    let target = self.profile.target_nm();
+                    self.profile.reset(target);
+                }
+                if early || (self.profile.done() && self.fine_takes(to_target)) {
                     self.mode = Mode::FineEntering;
                     self.generator.set_amplitude_v(0.0);
                     self.drive_v = 0.0;
