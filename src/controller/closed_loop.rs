@@ -131,11 +131,14 @@ impl Controller {
         if self.state() != State::Moving || to_target_nm.abs() > (1.0 + STOP_SHARE_OF_FINE_WINDOW) * window {
             return None;
         }
-        let v_m_s = self.speed_nm_s.abs().max(self.profile.velocity_nm_s().abs()) * 1e-9;
+        // The measured speed lags the slider by a few periods: the faster of it and the
+        // reference's, with its sign.
+        let (measured, reference) = (self.speed_nm_s, self.profile.velocity_nm_s());
+        let v_m_s = if measured.abs() >= reference.abs() { measured } else { reference } * 1e-9;
         let grip_n = self.preload.force_n().max(0.0) * self.cfg.mu_dynamic;
         let stop_nm = self.moving_mass_kg() * v_m_s * v_m_s * 1e9;
         (stop_nm < STOP_SHARE_OF_FINE_WINDOW * window * 2.0 * grip_n)
-            .then(|| stop_nm / (2.0 * grip_n) * self.speed_nm_s.signum())
+            .then(|| stop_nm / (2.0 * grip_n) * v_m_s.signum())
     }
 
     /// Whether the fine mode's static stroke takes a move of `to_target_nm` from here: within the

@@ -93,7 +93,8 @@ pub struct ModelTable {
 }
 
 /// How far the carriage swings about its mean line within a drive period: a carriage that sticks
-/// to the foot follows its whole stroke Xc = ω·Xc/ω (eqs. 8–9, per volt); a heavier one only as
+/// to the foot follows its whole stroke Xc, its peak speed ω·Xc over ω (eqs. 8–9, per volt); a
+/// heavier one only as
 /// far as the friction impulse carries it, and friction is at most μ·Fc with Fc averaging the
 /// preload over the period (eq. 12): about μ·F0/(M·ω²). On the plant at 16 and 18 N (0.05–5 kg,
 /// 1.2 and 2.2 kHz, 30–100 V) the swing is 0.6–1.2× the smaller of the two
