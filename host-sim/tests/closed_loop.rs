@@ -244,14 +244,24 @@ fn a_moving_mass_parameter_off_by_two_either_way_still_settles() {
 }
 
 /// Ten 1 mm moves out and back, `load` on the slider, on a plant whose truth is `truth` and a
-/// controller built for the prototype: each move's peak following error (µm).
+/// controller built for the prototype with the truth's carriage mass: each move's peak following
+/// error (µm).
 fn back_and_forth(truth: &Params, load: ExternalLoad) -> Vec<f64> {
-    let p = Params::prototype();
-    let mut sil = ready_board(truth, controller_config(&p), 16.0).unwrap();
+    let mut sil = board_for(truth);
     sil.set_load(load);
+    ten_moves(&mut sil)
+}
+
+fn board_for(truth: &Params) -> Sil {
+    let mut p = Params::prototype();
+    p.slider.mass_kg = truth.slider.mass_kg;
+    ready_board(truth, controller_config(&p), 16.0).unwrap()
+}
+
+fn ten_moves(sil: &mut Sil) -> Vec<f64> {
     let fe: Vec<f64> = (0..10)
         .map(|i| {
-            let r = run_move(&mut sil, if i % 2 == 0 { 1_000_000 } else { 0 }, 3.0, 0.05);
+            let r = run_move(sil, if i % 2 == 0 { 1_000_000 } else { 0 }, 3.0, 0.05);
             assert!(r.fault.is_none() && r.settle_time_s.is_some(), "move {i}: {r:?}");
             r.max_following_error_um
         })
@@ -337,6 +347,43 @@ fn repeated_moves_out_and_back_get_no_worse_and_learn_an_unknown_load() {
         "0.8 N unknown: first {:.3} µm, later {later:.3} on average: {loaded:?}",
         loaded[0]
     );
+}
+
+/// Issue 11 item 3: the feedforward learns the model's thrust error over repeated moves. A
+/// speed-up long enough to time well (ten speed-filter time constants, `mass.rs`) measures the
+/// carriage by momentum with the model's thrust; on a plant with μ 15 % below the table's the
+/// plant pushes 0.85× what the model says, which reads as a carriage 1/0.85 = 1.18× heavier. That
+/// effective mass, taken in half a measurement at a time and kept across moves, makes the
+/// profile's speed-up, its braking and the feedforward's M·a what the plant can do. The 50 kg
+/// carriage (its speed-up takes 25–30 ms): peak following error 1.27 µm on the first move, 0.48
+/// on the tenth (1.35 without the learning). The ratio of the masses learned with μ 15 % low and
+/// with μ right is the thrust ratio, an independent check that it is the thrust error that is
+/// learned (measured 1.17; the model's own speed-up error puts μ right at 1.10× the told mass).
+/// A preload change of more than 1 N forgets it (the error depends on the preload). The lighter
+/// carriages speed up in a few filter time constants and learn nothing: their first move is
+/// already at the loop's floor (1 kg: 0.35 µm with μ low, 0.36 with μ right).
+#[test]
+fn a_heavy_carriage_learns_the_models_thrust_error_over_repeated_moves() {
+    let mut right = Params::prototype();
+    right.slider.mass_kg = 50.0;
+    let mut sil = board_for(&right);
+    ten_moves(&mut sil);
+    let learned_right = f64::from(sil.controller.moving_mass_kg());
+    let mut low = right.clone();
+    low.friction.mu_dynamic *= 0.85;
+    low.friction.mu_static *= 0.85;
+    let mut sil = board_for(&low);
+    let fe = ten_moves(&mut sil);
+    assert!(fe[9] <= 0.5 * fe[0], "μ 15 % low: first {:.3} µm, tenth {:.3}: {fe:.2?}", fe[0], fe[9]);
+    let learned_low = f64::from(sil.controller.moving_mass_kg());
+    let ratio = learned_low / learned_right;
+    eprintln!("learned {learned_right:.2} kg (μ right), {learned_low:.2} kg (μ low): {ratio:.3}");
+    assert!((ratio - 1.0 / 0.85).abs() < 0.05, "learned mass ratio {ratio:.3}, thrust ratio 1/0.85");
+    // Another preload: what was learned is forgotten at the next command.
+    sil.plant.set_preload_n(14.0);
+    sil.run_until(0.2, |_| false);
+    sil.controller.move_to(500_000).unwrap();
+    assert_eq!(sil.controller.moving_mass_kg(), 50.0, "learned at 16 N, kept at 14 N");
 }
 
 /// Issue 11: against a load it is not told about, a heavy carriage settles without a fault. The

@@ -38,7 +38,7 @@ impl Controller {
             self.preload = PreloadCell::new(cfg.preload);
         }
         self.cfg = cfg;
-        self.mass_kg = cfg.moving_mass_kg;
+        self.forget_mass();
         self.model.reconfigure(&self.cfg);
         Ok(())
     }
@@ -79,7 +79,8 @@ impl Controller {
         if target_nm < self.cfg.travel_min_nm || target_nm > self.cfg.travel_max_nm {
             return Err(CommandError::OutOfTravel);
         }
-        self.check_preload()?;
+        let preload_n = self.check_preload()?;
+        self.forget_mass_off_its_preload(preload_n);
         self.start_load_estimate(target_nm);
         self.profile.set_target(target_nm);
         // The braking rate is fixed for the whole move: a braking curve that changed under the

@@ -229,6 +229,10 @@ pub struct Controller {
     decel_nm_s2: f32,
     /// The moving mass in use (kg): the parameter, or what a speed-up measured ([`mass`]).
     mass_kg: f32,
+    /// What long speed-ups taught beyond the told mass (kg, [`mass`]) ...
+    learned_mass_kg: f32,
+    /// ... at this preload (N).
+    mass_preload_n: f32,
     /// The move's speed-up while it is being timed.
     speedup: Option<SpeedUp>,
     reference_failures: u32,
@@ -279,6 +283,8 @@ impl Controller {
             prev_speed_nm_s: 0.0,
             decel_nm_s2: 1.0,
             mass_kg: cfg.moving_mass_kg,
+            learned_mass_kg: cfg.moving_mass_kg,
+            mass_preload_n: 0.0,
             speedup: None,
             reference_failures: 0,
             faults: 0,
