@@ -358,7 +358,8 @@ fn repeated_moves_out_and_back_get_no_worse_and_learn_an_unknown_load() {
 /// carriage (its speed-up takes 25–30 ms): peak following error 1.27 µm on the first move, 0.48
 /// on the tenth (1.35 without the learning). The ratio of the masses learned with μ 15 % low and
 /// with μ right is the thrust ratio, an independent check that it is the thrust error that is
-/// learned (measured 1.17; the model's own speed-up error puts μ right at 1.10× the told mass).
+/// learned (measured 1.17; the speed filter's lag in the impulse's thrust puts μ right at 1.10×
+/// the told mass).
 /// A preload change of more than 1 N forgets it (the error depends on the preload). The lighter
 /// carriages speed up in a few filter time constants and learn nothing: their first move is
 /// already at the loop's floor (1 kg: 0.35 µm with μ low, 0.36 with μ right).
