@@ -243,6 +243,58 @@ fn a_moving_mass_parameter_off_by_two_either_way_still_settles() {
     }
 }
 
+/// A host that changes a setting and moves at once (`VEL` then `MOV`, as a script does): every
+/// accepted setting asks for a new model table, and the move's braking rate, fixed at its command,
+/// was taken while there was none: 0, and a profile that cannot brake crawled (1 mm back had not
+/// settled after 3 s). It now takes the rate from the first table: the move settles within 1.25×
+/// the plant's limit, as the same move does without the setting change.
+#[test]
+fn a_move_commanded_right_after_a_setting_change_runs_at_full_speed() {
+    let (p, mut sil) = board(16.0);
+    let limit_s = physical_limit_s(&p, 1e-3);
+    let out = run_move(&mut sil, 1_000_000, 3.0, 0.05);
+    assert!(out.fault.is_none() && out.settle_time_s.is_some(), "out: {out:?}");
+    let mut slower = *sil.controller.config();
+    slower.velocity_max_nm_s *= 0.9;
+    sil.controller.set_config(slower).unwrap();
+    let back = run_move(&mut sil, 0, 3.0, 0.05);
+    let t = back.settle_time_s.unwrap_or(f64::INFINITY);
+    eprintln!("back right after the setting change: settle {t:.4} s, limit {limit_s:.4} s");
+    assert!(back.fault.is_none() && t <= 1.25 * limit_s, "settled in {t} s, limit {limit_s:.3} s");
+}
+
+/// A payload the speed-up measured stays in use: the next move measures it again from the mass
+/// it learned, not from the payload (a second 5 kg measurement against 1.5× the 5 kg in use would
+/// not count as a payload and fell back to the told 2.5 kg), and a speed or acceleration setting
+/// (`VEL`, `ACC`: a new configuration with the same mass and calibration) keeps it.
+#[test]
+fn a_measured_payload_stays_through_the_next_move_and_a_speed_setting() {
+    for mass_kg in [5.0, 50.0] {
+        let mut p = Params::prototype();
+        p.slider.mass_kg = mass_kg;
+        let mut cfg = controller_config(&p);
+        cfg.moving_mass_kg *= 0.5;
+        let mut sil = ready_board(&p, cfg, 16.0).unwrap();
+        for (i, to_nm) in [1_000_000, 0, 1_000_000].into_iter().enumerate() {
+            let r = run_move(&mut sil, to_nm, 3.0, 0.05);
+            assert!(r.fault.is_none() && r.settle_time_s.is_some(), "{mass_kg} kg, move {i}: {r:?}");
+            let used = f64::from(sil.controller.moving_mass_kg());
+            eprintln!("{mass_kg} kg told half, move {i}: uses {used:.2} kg");
+            assert!(
+                (0.75 * mass_kg..=1.6 * mass_kg).contains(&used),
+                "{mass_kg} kg, move {i}: uses {used:.2} kg"
+            );
+            if i == 1 {
+                let mut faster = *sil.controller.config();
+                faster.velocity_max_nm_s *= 0.9;
+                sil.controller.set_config(faster).unwrap();
+                let kept = f64::from(sil.controller.moving_mass_kg());
+                assert_eq!(kept, used, "{mass_kg} kg: a speed setting dropped the measured mass");
+            }
+        }
+    }
+}
+
 /// Ten 1 mm moves out and back, `load` on the slider, on a plant whose truth is `truth` and a
 /// controller built for the prototype with the truth's carriage mass: each move's peak following
 /// error (µm).
@@ -380,6 +432,10 @@ fn a_heavy_carriage_learns_the_models_thrust_error_over_repeated_moves() {
     let ratio = learned_low / learned_right;
     eprintln!("learned {learned_right:.2} kg (μ right), {learned_low:.2} kg (μ low): {ratio:.3}");
     assert!((ratio - 1.0 / 0.85).abs() < 0.05, "learned mass ratio {ratio:.3}, thrust ratio 1/0.85");
+    // The same preload: the next command keeps it.
+    sil.controller.move_to(0).unwrap();
+    assert_eq!(f64::from(sil.controller.moving_mass_kg()), learned_low, "forgotten at the same preload");
+    sil.run_until(3.0, |s| s.controller.on_target());
     // Another preload: what was learned is forgotten at the next command.
     sil.plant.set_preload_n(14.0);
     sil.run_until(0.2, |_| false);

@@ -15,7 +15,8 @@ const BRAKE_MIN_DRIVE_PERIODS: f32 = 20.0;
 const PROFILE_CRAWL_SHARE: f32 = 0.1;
 /// A moving carriage is handed to the fine mode early only while the stop its sine's end gives
 /// it is at most this share of the fine window (0.5 and 1 were tried: no smaller overshoot, and
-/// the 50 kg carriage's 1 and 10 µm steps took up to 40 % longer).
+/// the 50 kg carriage's 1 and 10 µm steps took up to 40 % longer), and only within the fine window
+/// and this share beyond it from the target.
 const STOP_SHARE_OF_FINE_WINDOW: f32 = 0.25;
 /// Floor of the braking limit (nm/s²) while the model has no speed yet.
 const MIN_BRAKE_NM_S2: f32 = 1.0e6;
@@ -38,6 +39,13 @@ impl Controller {
         let waiting = lag > self.cfg.profile_wait_lag_nm;
         if waiting {
             v_max = v_max.min((self.speed_nm_s * self.profile.velocity_nm_s().signum()).max(0.0));
+        }
+        if self.decel_nm_s2 <= 0.0 {
+            // A move commanded while the model table was being rebuilt (a setting changed just
+            // before it: `VEL` then `MOV`) got no braking rate at its command, and a profile that
+            // cannot brake crawls: it takes the rate from the first table (1 mm had not settled
+            // after 3 s).
+            self.decel_nm_s2 = self.accel_limit_nm_s2();
         }
         let v_before = self.profile.velocity_nm_s();
         let (dt_s, decel) = (self.dt_s, self.decel_nm_s2);
@@ -134,11 +142,18 @@ impl Controller {
         // The measured speed lags the slider by a few periods: the faster of it and the
         // reference's, with its sign.
         let (measured, reference) = (self.speed_nm_s, self.profile.velocity_nm_s());
-        let v_m_s = if measured.abs() >= reference.abs() { measured } else { reference } * 1e-9;
-        let grip_n = self.preload.force_n().max(0.0) * self.cfg.mu_dynamic;
-        let stop_nm = self.moving_mass_kg() * v_m_s * v_m_s * 1e9;
-        (stop_nm < STOP_SHARE_OF_FINE_WINDOW * window * 2.0 * grip_n)
-            .then(|| stop_nm / (2.0 * grip_n) * v_m_s.signum())
+        let v_m_s = (if measured.abs() >= reference.abs() { measured } else { reference }) * 1e-9;
+        let grip_n = self.grip_n();
+        if grip_n <= 0.0 {
+            return None;
+        }
+        let stop_nm = self.moving_mass_kg() * v_m_s * v_m_s * 1e9 / (2.0 * grip_n);
+        (stop_nm < STOP_SHARE_OF_FINE_WINDOW * window).then_some(stop_nm * v_m_s.signum())
+    }
+
+    /// What the still foot's friction holds or brakes the carriage with (N): μ·F0.
+    pub(super) fn grip_n(&self) -> f32 {
+        self.preload.force_n().max(0.0) * self.cfg.mu_dynamic
     }
 
     /// Whether the fine mode's static stroke takes a move of `to_target_nm` from here: within the

@@ -37,8 +37,13 @@ impl Controller {
             // Re-primed by the next sample.
             self.preload = PreloadCell::new(cfg.preload);
         }
+        // What the speed-ups measured stays through a speed or limit change (`VEL`, `ACC`, …),
+        // not through a new mass or calibration.
+        let forget = recalibrated || cfg.moving_mass_kg != self.cfg.moving_mass_kg;
         self.cfg = cfg;
-        self.forget_mass();
+        if forget {
+            self.forget_mass();
+        }
         self.model.reconfigure(&self.cfg);
         Ok(())
     }
@@ -84,7 +89,8 @@ impl Controller {
         self.start_load_estimate(target_nm);
         self.profile.set_target(target_nm);
         // The braking rate is fixed for the whole move: a braking curve that changed under the
-        // profile's feet would arrive with speed left over.
+        // profile's feet would arrive with speed left over. Without a model table yet it is 0,
+        // and the first table sets it (`regulate`).
         self.decel_nm_s2 = self.accel_limit_nm_s2();
         self.speedup = Some(SpeedUp::start());
         self.frequency_trial = None;

@@ -85,7 +85,7 @@ impl Controller {
         }
         // Trapezoid toward the commanded offset.
         let mass = self.moving_mass_kg();
-        let grip_n = self.preload.force_n().max(0.0) * self.cfg.mu_dynamic;
+        let grip_n = self.grip_n();
         let accel_v_s2 = (0.25 * grip_n / mass / (nm_per_v * 1e-9)).max(1.0);
         let rate_max_v_s: f32 = 20_000.0;
         let d = f.cmd_v - self.fine_offset_v;

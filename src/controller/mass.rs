@@ -5,29 +5,31 @@
 //! drive gives at the measured speed and L the load estimate. Timed from the move's command until
 //! the slider has half the profile's top speed; the speed filter's lag (it reports the speed of
 //! [`super::supervision::SPEED_FILTER`]'s time constant ago) is taken off the impulse. Only a
-//! speed-up long against that lag counts (four time constants: carriages of a few kg and more,
+//! speed-up long against that lag counts (two time constants: carriages of a few kg and more,
 //! whose braking the mass limits; lighter ones brake within the drive-period spread anyway).
 //! Only heavier than told counts: a mass overestimated brakes gently, one underestimated plans a
 //! stop the carriage cannot make (the 50 kg carriage told 25 kg overshot 1 mm by 8.4 µm).
 //!
-//! Two readings of a measurement (issue 11 item 3):
-//! - Over 1.5× the mass in use it is a payload, taken at once.
+//! Two readings of a measurement, against the learned mass (the told one until something is
+//! learned; issue 11 item 3):
+//! - Over 1.5× it is a payload, used for this move and until the next speed-up is timed.
 //! - Within that, from a speed-up at least ten filter time constants long, it is the model's
 //!   thrust error (a plant that pushes k× the model's thrust accelerates like a carriage 1/k as
-//!   heavy, and so it brakes and takes the feedforward's M·a): taken in half a measurement at a
-//!   time, kept across moves, never below the told mass, forgotten at another preload. A shorter
-//!   speed-up times the model's thrust at the filtered speed, which lags the slider's, and reads
-//!   heavy by itself (5 kg with μ right: 5.8–6.1 kg), so it teaches nothing.
+//!   heavy, and so it brakes and takes the feedforward's M·a): the learned mass takes in half of
+//!   it, is kept across moves, never falls below the told mass and is forgotten when the preload
+//!   is more than 1 N from where it was learned. A shorter speed-up times the model's thrust at
+//!   the filtered speed, which lags the slider's, and reads heavy by itself (5 kg with μ right:
+//!   5.8–6.1 kg), so it teaches nothing.
 
 use super::{Controller, Mode, State};
 
-/// A measured mass replaces the parameter from this share above it: below, the model's own thrust
-/// error (μ 15 % off moves the estimate by as much) decides nothing.
+/// A measured mass above this share of the learned one is a payload; below, it is the model's
+/// thrust error (μ 15 % off moves the estimate by as much), learned only from long speed-ups.
 const HEAVIER_SHARE: f32 = 1.5;
 /// At most this many times the parameter (a speed-up disturbed by a load step must not make the
 /// controller think the carriage tons).
 const MOST_TIMES: f32 = 4.0;
-/// A measurement within [`HEAVIER_SHARE`] of the mass in use moves it this share of the way.
+/// A measurement within [`HEAVIER_SHARE`] of the learned mass moves it this share of the way.
 const LEARN_SHARE: f32 = 0.5;
 /// Only speed-ups this many filter time constants long teach the thrust error.
 const LEARN_FILTER_TIMES: f32 = 10.0;
@@ -57,14 +59,18 @@ impl Controller {
 
     /// At a move's command: a mass learned at another preload is forgotten (what a long
     /// speed-up teaches beyond the told mass is the model's thrust error there, and that changes
-    /// with the preload).
+    /// with the preload). A payload in use stays: it is mass, whatever the preload.
     pub(super) fn forget_mass_off_its_preload(&mut self, preload_n: f32) {
-        if (preload_n - self.mass_preload_n).abs() > MASS_PRELOAD_SPAN_N {
-            self.forget_mass();
+        let told = self.cfg.moving_mass_kg;
+        if self.learned_mass_kg != told && (preload_n - self.mass_preload_n).abs() > MASS_PRELOAD_SPAN_N {
+            if self.mass_kg == self.learned_mass_kg {
+                self.mass_kg = told;
+            }
+            self.learned_mass_kg = told;
         }
     }
 
-    /// Back to the told mass (a new parameter, a new calibration, another preload).
+    /// Back to the told mass, learned and measured alike (a new mass parameter or calibration).
     pub(super) fn forget_mass(&mut self) {
         self.mass_kg = self.cfg.moving_mass_kg;
         self.learned_mass_kg = self.cfg.moving_mass_kg;
@@ -99,16 +105,17 @@ impl Controller {
         let measured_kg = impulse / (along * 1e-9);
         let told = self.cfg.moving_mass_kg;
         let before = self.mass_kg;
+        let learned = self.learned_mass_kg;
         let measured_kg = measured_kg.min(MOST_TIMES * told);
-        self.mass_kg = if measured_kg > HEAVIER_SHARE * before.max(told) {
+        self.mass_kg = if measured_kg > HEAVIER_SHARE * learned {
             measured_kg
         } else if s.t_s >= LEARN_FILTER_TIMES * lag_s {
-            self.learned_mass_kg = (before + LEARN_SHARE * (measured_kg - before)).max(told);
+            self.learned_mass_kg = (learned + LEARN_SHARE * (measured_kg - learned)).max(told);
+            self.mass_preload_n = self.preload.force_n();
             self.learned_mass_kg
         } else {
-            self.learned_mass_kg
+            learned
         };
-        self.mass_preload_n = self.preload.force_n();
         if self.mass_kg > before {
             // The braking rate was set at the command from the lighter mass; the profile has not
             // begun to brake yet (checked above).

@@ -227,7 +227,8 @@ pub struct Controller {
     last_sense: Option<usize>,
     prev_speed_nm_s: f32,
     decel_nm_s2: f32,
-    /// The moving mass in use (kg): the parameter, or what a speed-up measured ([`mass`]).
+    /// The moving mass in use (kg): the parameter, a payload a speed-up measured, or the mass
+    /// learned from long speed-ups ([`mass`]).
     mass_kg: f32,
     /// What long speed-ups taught beyond the told mass (kg, [`mass`]) ...
     learned_mass_kg: f32,
