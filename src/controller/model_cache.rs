@@ -98,7 +98,8 @@ pub struct ModelTable {
 /// far as the friction impulse carries it, and friction is at most μ·Fc with Fc averaging the
 /// preload over the period (eq. 12): about μ·F0/(M·ω²). On the plant at 16 and 18 N (0.05–5 kg,
 /// 1.2 and 2.2 kHz, 30–100 V) the swing is 0.6–1.2× the smaller of the two
-/// (`host-sim/tests/steady_inertia.rs`).
+/// (`host-sim/tests/steady_inertia.rs` holds it within 0.6–1.25×; at 5 N 0.2–1.35×). M is the told
+/// mass: a payload the controller measured makes the true swing smaller, the safe side.
 #[derive(Debug, Clone, Copy)]
 struct Swing {
     stroke_nm_per_v: f32,
