@@ -263,6 +263,35 @@ fn a_move_commanded_right_after_a_setting_change_runs_at_full_speed() {
     assert!(back.fault.is_none() && t <= 1.25 * limit_s, "settled in {t} s, limit {limit_s:.3} s");
 }
 
+/// `STP` and `HLT` in the period after a setting change (no model table yet: the model's
+/// braking rate is 0) planned the stop kilometres away, and the slider ran on past its target.
+/// Now they brake at the move's own rate, the profile's braking spread over 20 drive periods:
+/// from 2.5 mm/s at 2.2 kHz that is 20 · 2.5 mm/s / (2 · 2200 Hz) = 11 µm (with a table `STP`
+/// brakes at the stall force, about 1 µm).
+#[test]
+fn a_stop_right_after_a_setting_change_stops_the_slider() {
+    for halt in [false, true] {
+        let (_, mut sil) = board(16.0);
+        sil.controller.move_to(1_000_000).unwrap();
+        sil.run_until(0.2, |_| false);
+        let at_nm = sil.plant.slider_position_m() * 1e9;
+        let mut slower = *sil.controller.config();
+        slower.velocity_max_nm_s *= 0.9;
+        sil.controller.set_config(slower).unwrap();
+        if halt {
+            sil.controller.halt();
+        } else {
+            sil.controller.stop();
+        }
+        sil.run_until(0.5, |_| false);
+        let ran_nm = sil.plant.slider_position_m() * 1e9 - at_nm;
+        let case = if halt { "HLT" } else { "STP" };
+        eprintln!("{case} right after a setting change: the slider ran on {ran_nm:.0} nm");
+        assert!(ran_nm.abs() < 15_000.0, "{case}: ran on {ran_nm:.0} nm");
+        assert_eq!(sil.controller.state(), State::Holding, "{case}");
+    }
+}
+
 /// A payload the speed-up measured stays in use: the next move measures it again from the mass
 /// it learned, not from the payload (a second 5 kg measurement against 1.5× the 5 kg in use would
 /// not count as a payload and fell back to the told 2.5 kg), and a speed or acceleration setting

@@ -158,11 +158,7 @@ impl Controller {
     /// open-loop stepping stop at once.
     pub fn halt(&mut self) {
         match self.state() {
-            State::Moving => {
-                let a = self.accel_limit_nm_s2();
-                let p = self.profile.stopping_point_nm(a);
-                self.profile.set_target(p);
-            }
+            State::Moving => self.brake_to_a_stop(self.accel_limit_nm_s2()),
             State::Referencing | State::OpenLoop => self.stop(),
             _ => {}
         }
@@ -176,12 +172,28 @@ impl Controller {
     pub fn stop(&mut self) {
         if self.state() == State::Moving {
             let a = self.model_brake_nm_s2();
-            let p = self.profile.stopping_point_nm(a);
-            self.profile.set_target(p);
-            self.decel_nm_s2 = a;
+            self.brake_to_a_stop(a);
+            if a > 0.0 {
+                self.decel_nm_s2 = a;
+            }
             return;
         }
         if matches!(self.state(), State::Holding | State::Referencing | State::OpenLoop) {
+            self.hold_here_or_quiet();
+        }
+    }
+
+    /// The profile brakes at `rate_nm_s2` to where that stops it. In the period after a setting
+    /// change there is no model table and the model's rate is 0: the move's own braking rate
+    /// then, and with none either (the move has not started) the reference stops where the slider
+    /// is. A rate of 0 put the stopping point kilometres away, and the slider ran on to the end
+    /// of travel.
+    fn brake_to_a_stop(&mut self, rate_nm_s2: f32) {
+        let a = if rate_nm_s2 > 0.0 { rate_nm_s2 } else { self.decel_nm_s2 };
+        if a > 0.0 {
+            let p = self.profile.stopping_point_nm(a);
+            self.profile.set_target(p);
+        } else {
             self.hold_here_or_quiet();
         }
     }
