@@ -55,16 +55,7 @@ impl Controller {
             } else {
                 0.0
             };
-            if self.speedup.is_some() {
-                // Also at the slider's speed now: the filtered speed lags it by 2 ms, and the
-                // model's thrust falls with speed (see `mass.rs`).
-                let now = self
-                    .model
-                    .table
-                    .as_ref()
-                    .map_or(0.0, |t| t.thrust_n(self.swing_v(), d * self.encoder_speed_nm_s * 1e-6));
-                self.time_speedup(d * applied, d * now);
-            }
+            self.time_speedup(d * applied);
             if observe {
                 let mass = self.moving_mass_kg();
                 let accel = (self.speed_nm_s - self.prev_speed_nm_s) / self.dt_s * 1e-9;

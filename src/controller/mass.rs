@@ -17,12 +17,10 @@
 //!   thrust error (a plant that pushes k× the model's thrust accelerates like a carriage 1/k as
 //!   heavy, and so it brakes and takes the feedforward's M·a): the learned mass takes in half of
 //!   it, is kept across moves, never falls below the told mass and is forgotten when the preload
-//!   is more than 1 N from where it was learned. This impulse takes the model's thrust at each
-//!   period's encoder speed: the filtered speed lags the slider's, the thrust falls with speed,
-//!   and at the filtered speed a right model taught the 50 kg carriage 54.9 kg. A shorter
-//!   speed-up reads heavy at the filtered speed (5 kg with μ right: 5.8–6.1 kg) and noisy at the
-//!   encoder's (1.05–1.54× with μ 15 % low), so it teaches nothing; the payload reading keeps
-//!   the filtered speed.
+//!   is more than 1 N from where it was learned. The model's thrust is taken at the filtered
+//!   speed, which lags the slider's; the learning corrects that once at the end, for a
+//!   stall-limited speed-up. A shorter speed-up reads heavy by itself (5 kg with μ right:
+//!   5.8–6.1 kg), so it teaches nothing.
 
 use super::{Controller, Mode, State};
 
@@ -41,18 +39,16 @@ const MASS_PRELOAD_SPAN_N: f32 = 1.0;
 /// Speed-up shorter than this many speed-filter time constants: not timed.
 const LEAST_FILTER_TIMES: f32 = 2.0;
 
-/// A speed-up being timed: time since the command (s) and the impulse along the move (N·s),
-/// with the model's thrust at the filtered speed and at the encoder's speed of each period.
+/// A speed-up being timed: time since the command (s) and the impulse along the move (N·s).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct SpeedUp {
     t_s: f32,
     impulse_n_s: f32,
-    impulse_now_n_s: f32,
 }
 
 impl SpeedUp {
     pub(super) fn start() -> Self {
-        SpeedUp { t_s: 0.0, impulse_n_s: 0.0, impulse_now_n_s: 0.0 }
+        SpeedUp { t_s: 0.0, impulse_n_s: 0.0 }
     }
 }
 
@@ -82,8 +78,8 @@ impl Controller {
     }
 
     /// One period of the speed-up's timing: `thrust_x_n` is what the model says the drive gave
-    /// along +x this period at the filtered speed, `now_x_n` at this period's encoder speed.
-    pub(super) fn time_speedup(&mut self, thrust_x_n: f32, now_x_n: f32) {
+    /// along +x this period.
+    pub(super) fn time_speedup(&mut self, thrust_x_n: f32) {
         let Some(mut s) = self.speedup else { return };
         let v = self.profile.velocity_nm_s();
         let braking = self.accel_ref_nm_s2 * v < 0.0;
@@ -93,10 +89,8 @@ impl Controller {
         }
         let sense = v.signum();
         let net_n = sense * (thrust_x_n - self.thrust_bias_n);
-        let net_now_n = sense * (now_x_n - self.thrust_bias_n);
         s.t_s += self.dt_s;
         s.impulse_n_s += net_n * self.dt_s;
-        s.impulse_now_n_s += net_now_n * self.dt_s;
         let half = 0.5 * self.speed_limit_nm_s();
         let along = sense * self.speed_nm_s;
         if half <= 0.0 || along < half {
@@ -108,18 +102,27 @@ impl Controller {
         if s.t_s < LEAST_FILTER_TIMES * lag_s {
             return;
         }
-        // The filtered speed at the end is the slider's a filter time constant ago: the impulse
-        // up to then, the last stretch at about the thrust the filtered speed gives.
-        let tail_n_s = net_n * lag_s;
+        let impulse = s.impulse_n_s - net_n * lag_s;
+        let measured_kg = impulse / (along * 1e-9);
         let told = self.cfg.moving_mass_kg;
-        let measured_kg = ((s.impulse_n_s - tail_n_s) / (along * 1e-9)).min(MOST_TIMES * told);
-        let measured_now_kg = ((s.impulse_now_n_s - tail_n_s) / (along * 1e-9)).min(MOST_TIMES * told);
         let before = self.mass_kg;
         let learned = self.learned_mass_kg;
+        let measured_kg = measured_kg.min(MOST_TIMES * told);
         self.mass_kg = if measured_kg > HEAVIER_SHARE * learned {
             measured_kg
         } else if s.t_s >= LEARN_FILTER_TIMES * lag_s {
-            self.learned_mass_kg = (learned + LEARN_SHARE * (measured_now_kg - learned)).max(told);
+            // The thrust was taken at the filtered speed, which lags the slider's, and the thrust
+            // falls with speed: the impulse read high by ∫(F(v_f) − F(v)) dt ≈ −F′·∫(v − v_f) dt,
+            // and for the first-order filter ∫(v − v_f) dt = τ·Δv_f. F′ along the full-drive line
+            // (a long speed-up is stall-limited). Without this a right model taught the 50 kg
+            // carriage 54.9 kg.
+            let fall_n = self
+                .model
+                .table
+                .as_ref()
+                .map_or(0.0, |t| t.full_thrust_n(0.0) - t.full_thrust_n(along * 1e-6));
+            let measured_kg = measured_kg - fall_n.max(0.0) * lag_s / (along * 1e-9);
+            self.learned_mass_kg = (learned + LEARN_SHARE * (measured_kg - learned)).max(told);
             self.mass_preload_n = self.preload.force_n();
             self.learned_mass_kg
         } else {

@@ -207,8 +207,6 @@ pub struct Controller {
     integral_v: f32,
     fine_offset_v: f32,
     speed_nm_s: f32,
-    /// This period's encoder speed, unfiltered (nm/s; one count a period is 0.5 mm/s).
-    encoder_speed_nm_s: f32,
     on_target_s: f32,
     stall_s: f32,
     drive_v: f32,
@@ -271,7 +269,6 @@ impl Controller {
             integral_v: 0.0,
             fine_offset_v: 0.0,
             speed_nm_s: 0.0,
-            encoder_speed_nm_s: 0.0,
             on_target_s: 0.0,
             stall_s: 0.0,
             drive_v: 0.0,

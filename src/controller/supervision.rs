@@ -23,7 +23,6 @@ impl Controller {
                 let v = delta as f32 * e.nm_per_count() as f32 / self.dt_s;
                 // 2 ms speed filter: the encoder quantum (50 nm per 100 µs) is 0.5 mm/s.
                 self.speed_nm_s += SPEED_FILTER * (v - self.speed_nm_s);
-                self.encoder_speed_nm_s = v;
             }
         }
     }
