@@ -436,10 +436,10 @@ fn repeated_moves_out_and_back_get_no_worse_and_learn_an_unknown_load() {
 /// plant pushes 0.85× what the model says, which reads as a carriage 1/0.85 = 1.18× heavier. That
 /// effective mass, taken in half a measurement at a time and kept across moves, makes the
 /// profile's speed-up, its braking and the feedforward's M·a what the plant can do. The 50 kg
-/// carriage (its speed-up takes 25–30 ms): peak following error 1.27 µm on the first move, 0.55
+/// carriage (its speed-up takes 25–30 ms): peak following error 1.27 µm on the first move, 0.57
 /// on the tenth (1.35 without the learning). Two independent checks that it is the thrust error
-/// that is learned: a right model teaches nothing (50.5 kg), and the masses learned with μ 15 %
-/// low and with μ right are in the thrust ratio (measured 1.202 against 1.176).
+/// that is learned: a right model teaches nothing (50.4 kg), and the masses learned with μ 15 %
+/// low and with μ right are in the thrust ratio (measured 1.184 against 1.176).
 /// A preload change of more than 1 N forgets it (the error depends on the preload). The lighter
 /// carriages speed up in a few filter time constants and learn nothing: their first move is
 /// already at the loop's floor (1 kg: 0.35 µm with μ low, 0.36 with μ right).

@@ -113,14 +113,15 @@ impl Controller {
         } else if s.t_s >= LEARN_FILTER_TIMES * lag_s {
             // The thrust was taken at the filtered speed, which lags the slider's, and the thrust
             // falls with speed: the impulse read high by ∫(F(v_f) − F(v)) dt ≈ −F′·∫(v − v_f) dt,
-            // and for the first-order filter ∫(v − v_f) dt = τ·Δv_f. F′ along the full-drive line
-            // (a long speed-up is stall-limited). Without this a right model taught the 50 kg
-            // carriage 54.9 kg.
+            // and for the first-order filter ∫(v − v_f) dt = τ·Δv_f. F′ is the full-drive line's
+            // (a long speed-up is stall-limited), stall force over no-load speed, both cached:
+            // no table lookup in the tick. Without this a right model taught the 50 kg carriage
+            // 54.9 kg.
             let fall_n = self
                 .model
                 .table
                 .as_ref()
-                .map_or(0.0, |t| t.full_thrust_n(0.0) - t.full_thrust_n(along * 1e-6));
+                .map_or(0.0, |t| t.stall_n() * (along * 1e-6 / t.no_load_mm_s().max(1e-3)).min(1.0));
             let measured_kg = measured_kg - fall_n.max(0.0) * lag_s / (along * 1e-9);
             self.learned_mass_kg = (learned + LEARN_SHARE * (measured_kg - learned)).max(told);
             self.mass_preload_n = self.preload.force_n();
