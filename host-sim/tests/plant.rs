@@ -71,7 +71,7 @@ fn undamped_stator_conserves_energy_through_contact_and_flight() {
     let mut p = Params::prototype();
     p.stator.damping_ratio = 0.0;
     p.stator.preload_damping_ratio = Some(0.0);
-    p.contact.damping_ratio = 0.0;
+    p.contact.restitution = 1.0;
     let mut plant = Plant::new(&p, 10.0);
     plant.set_drive_off(true);
     // Throw the counterweight: the foot then lifts off and lands again every cycle.
@@ -194,4 +194,39 @@ fn sensors_read_what_the_firmware_would() {
         "{mean_n} vs {}",
         plant.preload_force_n()
     );
+}
+
+#[test]
+fn a_free_foot_rebounds_from_the_slider_with_the_contact_pairs_restitution() {
+    // The foot alone on the contact (stacks, flexure and preload spring made negligible): it
+    // lands at v0 and leaves at e·v0, losing 1 − e² of its kinetic energy, whatever e the
+    // parameter file gives. Independent of the plant's contact law: the definition of e.
+    for e in [0.3, 0.6, 0.9] {
+        let mut p = Params::prototype();
+        p.contact.restitution = e;
+        p.stack.stiffness_n_per_m = 1e-6;
+        p.stator.flexure_stiffness_n_per_m = 0.0;
+        p.stator.preload_spring_n_per_m = 1e-6;
+        p.stator.damping_ratio = 0.0;
+        p.stator.preload_damping_ratio = Some(0.0);
+        let mut plant = Plant::new(&p, 0.0);
+        plant.set_drive_off(true);
+        let v0 = 0.02;
+        plant.set_stator_state([-1e-9, v0, -1.0, 0.0]);
+        let mut drive = |_t: f64| [50.0, 50.0];
+        let (mut touched, mut left) = (false, false);
+        for _ in 0..200 {
+            plant.step(&mut drive);
+            touched |= plant.contact_force_n() > 0.0;
+            if touched && plant.foot_normal_m() < 0.0 {
+                left = true;
+                break;
+            }
+        }
+        assert!(left, "e {e}: the foot must land and leave");
+        let v1 = plant.stator_state()[1];
+        let lost = 1.0 - (v1 / v0).powi(2);
+        assert!((-v1 / v0 - e).abs() < 0.01, "e {e}: rebound {:.4} of the approach", -v1 / v0);
+        assert!((lost - (1.0 - e * e)).abs() < 0.02, "e {e}: lost {lost:.4} of the energy");
+    }
 }

@@ -91,13 +91,60 @@ impl Stator {
 pub struct Contact {
     /// `kc = k3 = Ec·Ac/hc` (ceramic 2e9, 45 steel 1e9, epoxy 5e8 N/m).
     pub stiffness_n_per_m: f64,
-    /// Damping ratio of the foot on the contact spring (Kelvin–Voigt, unilateral).
-    pub damping_ratio: f64,
+    /// Coefficient of restitution `e` of the foot landing on the slider: the rebound speed over
+    /// the approach speed of the foot alone on the contact spring (a property of the contact
+    /// pair; `1 − e²` of the approach's kinetic energy is lost per impact). The plant's contact
+    /// is a unilateral Kelvin–Voigt spring–dashpot whose damping ratio gives this `e`
+    /// ([`damping_ratio_for_restitution`]); from `e^{−2} ≈ 0.135` (critically damped) to 1.
+    pub restitution: f64,
     /// Tangential (shear) stiffness of the friction layer: the pre-sliding spring between foot
     /// and slider while they stick (Coulomb laws). For a layer in shear `kt = G·Ac/hc =
     /// kc/(2(1+ν))`; 0 = rigid (the slider takes the foot's speed exactly while sticking).
     #[serde(default)]
     pub tangential_stiffness_n_per_m: f64,
+}
+
+impl Contact {
+    /// Damping ratio of the foot on the contact spring that gives [`Contact::restitution`].
+    pub fn damping_ratio(&self) -> f64 {
+        damping_ratio_for_restitution(self.restitution)
+    }
+}
+
+/// Restitution of a mass landing on a unilateral Kelvin–Voigt contact of damping ratio `ζ < 1`
+/// (no other force acting). The contact force `k·x + c·ẋ` starts at `c·v0` and ends when it
+/// falls back to zero (the contact cannot pull), at `ωd·t = θ` with
+/// `tan θ = −2ζ√(1−ζ²)/(1−2ζ²)`, θ in (0, π): then
+/// `e = −e^{−ζθ/√(1−ζ²)}·(cos θ − ζ/√(1−ζ²)·sin θ)`. At ζ = 1 (the limit) `e = e^{−2}`.
+pub fn restitution_for_damping_ratio(zeta: f64) -> f64 {
+    let z = zeta.clamp(0.0, 1.0);
+    if z >= 1.0 - 1e-12 {
+        return (-2.0f64).exp();
+    }
+    let s = (1.0 - z * z).sqrt();
+    let theta = std::f64::consts::PI - (2.0 * z * s).atan2(1.0 - 2.0 * z * z);
+    -(-z * theta / s).exp() * (theta.cos() - z / s * theta.sin())
+}
+
+/// The damping ratio whose [`restitution_for_damping_ratio`] is `e` (bisection: `e(ζ)` falls
+/// monotonically from 1 at ζ = 0 to `e^{−2}` at ζ = 1); `e` outside that range is clamped.
+pub fn damping_ratio_for_restitution(e: f64) -> f64 {
+    let (mut lo, mut hi) = (0.0, 1.0);
+    if e >= 1.0 {
+        return 0.0;
+    }
+    if e <= restitution_for_damping_ratio(1.0) {
+        return 1.0;
+    }
+    for _ in 0..80 {
+        let mid = 0.5 * (lo + hi);
+        if restitution_for_damping_ratio(mid) > e {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -227,7 +274,6 @@ impl Params {
             ("stator.flexure_stiffness_n_per_m", self.stator.flexure_stiffness_n_per_m),
             ("stator.damping_ratio", self.stator.damping_ratio),
             ("stator.preload_damping_ratio", self.stator.preload_mode_damping_ratio()),
-            ("contact.damping_ratio", self.contact.damping_ratio),
             ("contact.tangential_stiffness_n_per_m", self.contact.tangential_stiffness_n_per_m),
             ("friction.viscous_n_s_per_m", self.friction.viscous_n_s_per_m),
             ("friction.lugre_bristle_damping_s_per_m", self.friction.lugre_bristle_damping_s_per_m),
@@ -238,6 +284,13 @@ impl Params {
             if !(v.is_finite() && v >= 0.0) {
                 bail!("{name} must be zero or positive, got {v}");
             }
+        }
+        let e_min = restitution_for_damping_ratio(1.0);
+        if !(self.contact.restitution >= e_min && self.contact.restitution <= 1.0) {
+            bail!(
+                "contact.restitution must be within {e_min:.3}–1 (critically damped to elastic), got {}",
+                self.contact.restitution
+            );
         }
         if self.friction.mu_static < self.friction.mu_dynamic {
             bail!("friction.mu_static must be at least friction.mu_dynamic");

@@ -201,7 +201,7 @@ impl Plant {
         let k2 = p.stator.preload_spring_n_per_m;
         // `hertz_contact`: the contact stiffness at this static preload (unchanged without it).
         let kc = p.effects.contact_stiffness_n_per_m(p.contact.stiffness_n_per_m, preload_n);
-        let c3 = 2.0 * p.contact.damping_ratio * (kc * m1).sqrt();
+        let c3 = 2.0 * p.contact.damping_ratio() * (kc * m1).sqrt();
         let dt = p.integrator.step_s;
 
         let build = |contact: bool| {
@@ -578,7 +578,7 @@ impl Plant {
         let f = &self.p.friction;
         let mass = self.slider_mass_kg;
         let kt = self.p.contact.tangential_stiffness_n_per_m;
-        let ct = 2.0 * self.p.contact.damping_ratio * (kt * mass).sqrt();
+        let ct = 2.0 * self.p.contact.damping_ratio() * (kt * mass).sqrt();
         let v_old = self.slider_v_m_s;
         let friction = if fc > 0.0 {
             // Stick trial: F = kt·(s + dt·(vf − v)) + ct·(vf − v), v = v_old + dt·(ext + F)/m.
