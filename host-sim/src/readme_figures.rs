@@ -1,9 +1,10 @@
-//! `host-sim readme-figures`: every figure in `docs/` and every table of the README that the
-//! simulator measures, from the code, by one command. The README's generated tables sit between
-//! `<!-- readme-figures: NAME -->` and `<!-- /readme-figures -->` and are rewritten in place.
+//! `host-sim readme-figures`: every figure in `docs/` and every table of the README and the
+//! `docs/*.md` pages that the simulator measures, from the code, by one command. A generated
+//! table sits between `<!-- readme-figures: NAME -->` and `<!-- /readme-figures -->` in whichever
+//! of `README.md` or `docs/*.md` holds it, and is rewritten in place there.
 //!
 //! `--check` writes nothing: it regenerates into memory and a temporary directory and fails when
-//! the committed files no longer match. Tolerances: a table number may differ by one unit in its
+//! the committed files no longer match (a table no page holds is drift too). Tolerances: a table number may differ by one unit in its
 //! last printed digit or 1 %, whichever is larger; a figure must have the same SVG elements and
 //! text, every number in it (coordinates in pixels, tick labels) within 2.
 
@@ -22,8 +23,8 @@ use std::path::{Path, PathBuf};
 /// What `host-sim readme-figures` does.
 #[derive(Debug, Clone)]
 pub struct ReadmeFiguresOptions {
-    /// Compare with the committed figures and README tables instead of writing them (an error on
-    /// drift).
+    /// Compare with the committed figures and the tables of README.md and docs/*.md instead of
+    /// writing them (an error on drift).
     pub check: bool,
     /// Repository root: where README.md, docs/ and host-sim/ are.
     pub root: PathBuf,
@@ -32,7 +33,7 @@ pub struct ReadmeFiguresOptions {
 const HEAVY_SLIDER: &str = "host-sim/params/heavy-slider.toml";
 const EXAMPLE_CSV: &str = "host-sim/data/example-measured.csv";
 
-/// A generated README table.
+/// A generated table.
 struct Table {
     name: &'static str,
     text: String,
@@ -153,7 +154,7 @@ fn gap_table(r: &gap::GapReport) -> String {
     t
 }
 
-/// A value in the protocol's unit, as the README prints it.
+/// A value in the protocol's unit, as the parameter table prints it.
 fn gcs_text(s: &Setting, v: Value) -> String {
     match (s.ty, v) {
         (Ty::I64Nm, Value::Int(nm)) => {
@@ -299,7 +300,29 @@ fn tempdir(what: &str) -> Result<PathBuf> {
 const BEGIN: &str = "<!-- readme-figures: ";
 const END: &str = "<!-- /readme-figures -->";
 
-/// The README's marked blocks: (name, byte range of the content between the markers). A block's
+/// The pages that may hold generated tables: `README.md`, then every `docs/*.md` in name order.
+fn pages(root: &Path, docs: &Path) -> Result<Vec<PathBuf>> {
+    let mut md: Vec<PathBuf> = std::fs::read_dir(docs)
+        .with_context(|| format!("cannot read {}", docs.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_file() && p.extension().is_some_and(|x| x == "md"))
+        .collect();
+    md.sort();
+    let mut out = vec![root.join("README.md")];
+    out.extend(md);
+    Ok(out)
+}
+
+/// A page with its marked blocks.
+struct Page {
+    path: PathBuf,
+    /// The path as the messages name it (`README.md`, `docs/controller.md`).
+    label: String,
+    text: String,
+    blocks: Vec<(String, std::ops::Range<usize>)>,
+}
+
+/// A page's marked blocks: (name, byte range of the content between the markers). A block's
 /// end marker also starts a line.
 fn marked_blocks(readme: &str) -> Result<Vec<(String, std::ops::Range<usize>)>> {
     let mut out = Vec::new();
@@ -313,7 +336,7 @@ fn marked_blocks(readme: &str) -> Result<Vec<(String, std::ops::Range<usize>)>> 
         let end = readme[content_start - 1..]
             .find(&format!("\n{END}"))
             .map(|j| content_start + j)
-            .with_context(|| format!("README block '{name}' has no {END}"))?;
+            .with_context(|| format!("block '{name}' has no {END}"))?;
         out.push((name, content_start..end));
         from = end + END.len();
     }
@@ -403,13 +426,21 @@ pub fn figure_drift(committed: &str, generated: &str) -> Option<String> {
 pub fn run(args: &ReadmeFiguresOptions) -> Result<()> {
     let root = &args.root;
     let readme_path = root.join("README.md");
-    let readme = std::fs::read_to_string(&readme_path)
-        .with_context(|| format!("--root {}: cannot read {}", root.display(), readme_path.display()))?;
+    if !readme_path.is_file() {
+        bail!("--root {}: cannot read {}", root.display(), readme_path.display());
+    }
     let docs = root.join("docs");
     if !docs.is_dir() {
         bail!("--root {}: no docs/ directory there", root.display());
     }
-    let blocks = marked_blocks(&readme)?;
+    let mut pages_read = Vec::new();
+    for path in pages(root, &docs)? {
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("--root {}: cannot read {}", root.display(), path.display()))?;
+        let label = path.strip_prefix(root).unwrap_or(&path).display().to_string();
+        let blocks = marked_blocks(&text).with_context(|| label.clone())?;
+        pages_read.push(Page { path, label, text, blocks });
+    }
     let out_dir = if args.check { tempdir("readme-figures")? } else { docs.clone() };
     let tables = generate(root, &out_dir)?;
     for t in &tables {
@@ -426,13 +457,18 @@ pub fn run(args: &ReadmeFiguresOptions) -> Result<()> {
         }
         let _ = std::fs::remove_dir_all(&out_dir);
         for t in &tables {
-            match blocks.iter().find(|(name, _)| name == t.name) {
-                None => drift.push(format!("README.md: no block '{}'", t.name)),
-                Some((_, range)) => {
-                    if let Some(d) = table_drift(&readme[range.clone()], &t.text) {
-                        drift.push(format!("README.md table '{}': {d}", t.name));
+            // Every block of that name is checked, wherever it is.
+            let mut found = false;
+            for page in &pages_read {
+                for (_, range) in page.blocks.iter().filter(|(name, _)| name == t.name) {
+                    found = true;
+                    if let Some(d) = table_drift(&page.text[range.clone()], &t.text) {
+                        drift.push(format!("{} table '{}': {d}", page.label, t.name));
                     }
                 }
+            }
+            if !found {
+                drift.push(format!("README.md and docs/*.md: no block '{}'", t.name));
             }
         }
         if !drift.is_empty() {
@@ -440,29 +476,36 @@ pub fn run(args: &ReadmeFiguresOptions) -> Result<()> {
                 println!("drift: {d}");
             }
             bail!(
-                "{} of the README's figures and tables no longer match the code ({}); regenerate them \
-                 with `cargo run --release -p host-sim -- readme-figures`",
+                "{} of the README's and docs' figures and tables no longer match the code ({}); \
+                 regenerate them with `cargo run --release -p host-sim -- readme-figures`",
                 drift.len(),
                 drift.join("; ")
             );
         }
-        println!("README figures and tables match the code");
+        println!("README and docs figures and tables match the code");
         return Ok(());
     }
-    let mut text = readme.clone();
-    // Replace from the last block back so earlier ranges stay valid.
-    let mut blocks = blocks;
-    blocks.sort_by_key(|(_, r)| std::cmp::Reverse(r.start));
-    for (name, range) in blocks {
-        if let Some(t) = tables.iter().find(|t| t.name == name) {
-            text.replace_range(range, &t.text);
+    let mut missing: Vec<&str> = tables.iter().map(|t| t.name).collect();
+    for page in pages_read {
+        let mut text = page.text.clone();
+        // Replace from the last block back so earlier ranges stay valid.
+        let mut blocks = page.blocks;
+        blocks.sort_by_key(|(_, r)| std::cmp::Reverse(r.start));
+        for (name, range) in blocks {
+            if let Some(t) = tables.iter().find(|t| t.name == name) {
+                text.replace_range(range, &t.text);
+                missing.retain(|m| *m != name);
+            }
+        }
+        if text != page.text {
+            std::fs::write(&page.path, text)
+                .with_context(|| format!("cannot write {}", page.path.display()))?;
         }
     }
-    if text != readme {
-        std::fs::write(&readme_path, text)
-            .with_context(|| format!("cannot write {}", readme_path.display()))?;
+    println!("figures written to {}; tables in README.md and docs/*.md updated", docs.display());
+    for m in missing {
+        println!("no block '{m}' in README.md or docs/*.md: that table was printed only");
     }
-    println!("figures written to {}; README tables updated", docs.display());
     Ok(())
 }
 
