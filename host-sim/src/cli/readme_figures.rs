@@ -5,8 +5,8 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct ReadmeFiguresArgs {
-    /// Compare with the committed figures and README tables instead of writing them; exit
-    /// non-zero on drift.
+    /// Compare with the committed figures and the tables in README.md and docs/*.md instead of
+    /// writing them; exit non-zero on drift.
     #[arg(long)]
     pub check: bool,
     /// Repository root: where README.md, docs/ and host-sim/ are.
