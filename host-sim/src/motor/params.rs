@@ -12,6 +12,9 @@ use std::path::Path;
 
 /// The prototype parameter set shipped with the project.
 pub const PROTOTYPE_TOML: &str = include_str!("../../params/prototype.toml");
+/// The prototype with every plant parameter sourced (`params/prototype-sourced.toml`, issue 28):
+/// the contact's restitution and the friction layer's material damping.
+pub const PROTOTYPE_SOURCED_TOML: &str = include_str!("../../params/prototype-sourced.toml");
 /// The heavy-slider set (8 kg counterweight, 50 kg slider): the constant-speed model's regime,
 /// where the model-gap workflow's base model holds (`params/heavy-slider.toml`).
 pub const HEAVY_SLIDER_TOML: &str = include_str!("../../params/heavy-slider.toml");
@@ -102,6 +105,24 @@ pub struct Contact {
     /// kc/(2(1+ν))`; 0 = rigid (the slider takes the foot's speed exactly while sticking).
     #[serde(default)]
     pub tangential_stiffness_n_per_m: f64,
+    /// How the friction layer's shear dashpot and slip are modelled.
+    #[serde(default)]
+    pub friction_layer: FrictionLayer,
+}
+
+/// The friction layer's law (Coulomb friction models with `tangential_stiffness_n_per_m > 0`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FrictionLayer {
+    /// One Kelvin–Voigt material: the shear dashpot is `kt` times the contact's retardation time
+    /// `c3/kc`, independent of the carriage; in slip the layer carries the sliding force and
+    /// relaxes toward it (`kt·s + ct·ṡ = F`), so the force is continuous when it sticks again.
+    #[default]
+    KelvinVoigt,
+    /// The earlier law, without a source (issue 28): a dashpot at the contact's damping ratio on
+    /// the carriage's mass, `ct = 2ζ·√(kt·M)`, and in slip the layer set to `F/kt` at once. Kept
+    /// only while the controller's model is brought to the sourced plant.
+    MassScaled,
 }
 
 impl Contact {
@@ -205,6 +226,11 @@ impl Params {
     pub fn prototype() -> Self {
         // The shipped file is checked by a test; failing here would be a build defect.
         Self::from_toml(PROTOTYPE_TOML).expect("params/prototype.toml is valid")
+    }
+
+    /// The sourced prototype ([`PROTOTYPE_SOURCED_TOML`]).
+    pub fn prototype_sourced() -> Self {
+        Self::from_toml(PROTOTYPE_SOURCED_TOML).expect("params/prototype-sourced.toml is valid")
     }
 
     /// The heavy-slider set ([`HEAVY_SLIDER_TOML`]).

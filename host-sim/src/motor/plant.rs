@@ -8,7 +8,7 @@
 //! velocity-level implicit friction law (stick solved exactly), so sticking never chatters.
 
 use crate::motor::effects::Effects;
-use crate::motor::params::{FrictionModel, Params};
+use crate::motor::params::{FrictionLayer, FrictionModel, Params};
 use crate::motor::steady::amplifier_stage_tau_s;
 use nalgebra::SMatrix;
 use rand::Rng;
@@ -105,6 +105,22 @@ pub fn stator_modes_hz(p: &Params, with_contact: bool) -> [f64; 2] {
     [f.first().copied().unwrap_or(f64::NAN), f.get(1).copied().unwrap_or(f64::NAN)]
 }
 
+/// The friction layer's shear dashpot `ct` (N·s/m), a property of the layer's material: the
+/// contact's normal spring and dashpot (`kc`, `c3`) and the layer's shear spring `kt` are one
+/// Kelvin–Voigt material loaded in compression and in shear, with one retardation time
+/// `τ = c3/kc` (the same loss factor ωτ in both), so `ct = kt·τ`. What sits on the slider does
+/// not enter it.
+/// ([`FrictionLayer::MassScaled`]: `2ζ·√(kt·M)` on the moving mass instead.)
+pub fn layer_damping_n_s_per_m(p: &Params, kc_n_per_m: f64, c3_n_s_per_m: f64) -> f64 {
+    let kt = p.contact.tangential_stiffness_n_per_m;
+    match p.contact.friction_layer {
+        FrictionLayer::KelvinVoigt => kt * c3_n_s_per_m / kc_n_per_m,
+        FrictionLayer::MassScaled => {
+            2.0 * p.contact.damping_ratio() * (kt * p.effects.slider_mass_kg(p.slider.mass_kg)).sqrt()
+        }
+    }
+}
+
 pub struct Plant {
     p: Params,
     dt_s: f64,
@@ -133,6 +149,10 @@ pub struct Plant {
     bristle_m: f64,
     /// Shear of the friction layer (foot contact point minus slider, m) while they stick.
     shear_m: f64,
+    /// Rate of the layer's shear over the last step (m/s).
+    shear_rate_m_s: f64,
+    /// The friction layer's dashpot `ct` (N·s/m): see [`layer_damping_n_s_per_m`].
+    layer_damping_n_s_per_m: f64,
     friction_model: FrictionModel,
     // Last step's outputs.
     contact_force_n: f64,
@@ -250,6 +270,8 @@ impl Plant {
             slider_v_m_s: 0.0,
             bristle_m: 0.0,
             shear_m: 0.0,
+            shear_rate_m_s: 0.0,
+            layer_damping_n_s_per_m: layer_damping_n_s_per_m(p, kc, c3),
             friction_model: p.friction.model,
             contact_force_n: preload_n,
             friction_force_n: 0.0,
@@ -568,20 +590,76 @@ impl Plant {
         self.slider_x_m += dt * self.slider_v_m_s;
     }
 
-    /// Coulomb laws with a compliant friction layer: while they stick, foot and slider are joined
-    /// by the layer's shear spring `kt` (with the contact's damping ratio on the slider mass);
-    /// the spring force is capped at the sticking limit, beyond which the pair slides at μd·Fc
-    /// and the layer stays sheared by the sliding force. Without contact the layer relaxes.
-    /// Implicit in the slider speed, so a stiff layer on a light slider stays stable.
+    /// Coulomb laws with a compliant friction layer: a Kelvin–Voigt layer (shear spring `kt`,
+    /// dashpot `ct`) in series with the Coulomb interface. While the interface sticks, the layer
+    /// carries the foot's motion relative to the slider; when the force it would need exceeds the
+    /// sticking limit the interface slides at μd·Fc, and the layer, carrying that force, relaxes
+    /// toward `F/kt` with its own time constant `ct/kt` (`kt·s + ct·ṡ = F`). Re-sticking happens
+    /// when the interface's slip speed `vf − ṡ − v` crosses zero, so the force is continuous.
+    /// Without contact the layer relaxes toward zero the same way. Implicit in the slider speed
+    /// and the layer's shear, so a stiff layer on a light slider stays stable.
     fn slider_on_shear_spring(&mut self, fc: f64, foot_speed: f64, ext: f64, mu_stick: f64, mu_scale: f64) {
         let dt = self.dt_s;
         let f = &self.p.friction;
         let mass = self.slider_mass_kg;
         let kt = self.p.contact.tangential_stiffness_n_per_m;
-        let ct = 2.0 * self.p.contact.damping_ratio() * (kt * mass).sqrt();
+        let ct = self.layer_damping_n_s_per_m;
+        if self.p.contact.friction_layer == FrictionLayer::MassScaled {
+            return self.slider_on_mass_scaled_layer(fc, foot_speed, ext, mu_stick, mu_scale);
+        }
+        let v_old = self.slider_v_m_s;
+        // Stick trial by the trapezoidal rule (energy-conserving for the undamped spring, so the
+        // step adds no damping of its own): the layer shears at u = vf − v, s' = s + dt·(u0 + u)/2,
+        // and the force over the step is F = kt·(s + s')/2 + ct·(u0 + u)/2 with u0 last step's
+        // shear rate; v = v_old + dt·(ext + F)/m.
+        let u0 = self.shear_rate_m_s;
+        let a = 0.25 * kt * dt + 0.5 * ct;
+        let v_stick =
+            (v_old + dt / mass * (ext + kt * self.shear_m + a * (u0 + foot_speed))) / (1.0 + dt / mass * a);
+        let u = foot_speed - v_stick;
+        let trial = kt * self.shear_m + a * (u0 + u);
+        let friction = if fc > 0.0 && trial.abs() <= mu_stick * fc {
+            self.shear_m += 0.5 * dt * (u0 + u);
+            self.shear_rate_m_s = u;
+            trial
+        } else {
+            // Sliding (or no contact: no force through the interface).
+            let slide = if fc > 0.0 { mu_scale * f.mu_dynamic * fc * trial.signum() } else { 0.0 };
+            // The layer relaxes toward slide/kt: kt·s' + ct·(s' − s)/dt = slide (implicit Euler:
+            // no overshoot however short ct/kt is against the step).
+            let s_new = (slide + ct / dt * self.shear_m) / (kt + ct / dt);
+            self.shear_rate_m_s = (s_new - self.shear_m) / dt;
+            self.shear_m = s_new;
+            if fc > 0.0 {
+                let k = f.viscous_n_s_per_m * dt / mass;
+                let v_new = (v_old + dt * (ext + slide) / mass + k * foot_speed) / (1.0 + k);
+                slide + f.viscous_n_s_per_m * (foot_speed - v_new)
+            } else {
+                0.0
+            }
+        };
+        self.friction_force_n = friction;
+        self.slider_v_m_s = v_old + dt * (ext + friction) / mass;
+        self.slider_x_m += dt * self.slider_v_m_s;
+    }
+
+    /// [`FrictionLayer::MassScaled`]: backward Euler with the dashpot on the carriage's mass; in
+    /// slip the layer is set to the sliding force's shear at once.
+    fn slider_on_mass_scaled_layer(
+        &mut self,
+        fc: f64,
+        foot_speed: f64,
+        ext: f64,
+        mu_stick: f64,
+        mu_scale: f64,
+    ) {
+        let dt = self.dt_s;
+        let f = &self.p.friction;
+        let mass = self.slider_mass_kg;
+        let kt = self.p.contact.tangential_stiffness_n_per_m;
+        let ct = self.layer_damping_n_s_per_m;
         let v_old = self.slider_v_m_s;
         let friction = if fc > 0.0 {
-            // Stick trial: F = kt·(s + dt·(vf − v)) + ct·(vf − v), v = v_old + dt·(ext + F)/m.
             let a = kt * dt + ct;
             let v_new =
                 (v_old + dt / mass * (ext + kt * self.shear_m + a * foot_speed)) / (1.0 + dt / mass * a);
