@@ -7,6 +7,7 @@
 //! located to `step/2^10`. This handles `kc` up to 2e9 N/m without a tiny step. The slider uses a
 //! velocity-level implicit friction law (stick solved exactly), so sticking never chatters.
 
+use crate::motor::contact_friction::{FrictionLaw, Layer, StepInput};
 use crate::motor::effects::Effects;
 use crate::motor::params::{FrictionLayer, FrictionModel, Params};
 use crate::motor::steady::amplifier_stage_tau_s;
@@ -62,7 +63,7 @@ impl Transition {
 /// Stator normal dynamics (eqs. 4 and 6) as a state matrix over `[y1, v1, y2, v2, drive, anchor]`,
 /// the two inputs augmented as constant states so that `exp(A·h)` gives the exact zero-order-hold
 /// transition. `contact` adds the contact spring and dashpot on the foot.
-fn state_matrix(p: &Params, contact: Option<(f64, f64)>) -> SMatrix<f64, 6, 6> {
+pub(crate) fn state_matrix(p: &Params, contact: Option<(f64, f64)>) -> SMatrix<f64, 6, 6> {
     let m1 = p.stator.foot_mass_kg;
     let m2 = p.stator.counterweight_mass_kg;
     let k1 = p.k1_n_per_m();
@@ -121,6 +122,17 @@ pub fn layer_damping_n_s_per_m(p: &Params, kc_n_per_m: f64, c3_n_s_per_m: f64) -
     }
 }
 
+/// The Coulomb laws' friction constants of a parameter set, with the contact's `kc` and `c3`.
+pub fn friction_law(p: &Params, kc_n_per_m: f64, c3_n_s_per_m: f64) -> FrictionLaw {
+    FrictionLaw {
+        kt_n_per_m: p.contact.tangential_stiffness_n_per_m,
+        ct_n_s_per_m: layer_damping_n_s_per_m(p, kc_n_per_m, c3_n_s_per_m),
+        layer: p.contact.friction_layer,
+        mu_dynamic: p.friction.mu_dynamic,
+        viscous_n_s_per_m: p.friction.viscous_n_s_per_m,
+    }
+}
+
 pub struct Plant {
     p: Params,
     dt_s: f64,
@@ -147,12 +159,9 @@ pub struct Plant {
     slider_x_m: f64,
     slider_v_m_s: f64,
     bristle_m: f64,
-    /// Shear of the friction layer (foot contact point minus slider, m) while they stick.
-    shear_m: f64,
-    /// Rate of the layer's shear over the last step (m/s).
-    shear_rate_m_s: f64,
-    /// The friction layer's dashpot `ct` (N·s/m): see [`layer_damping_n_s_per_m`].
-    layer_damping_n_s_per_m: f64,
+    /// The friction layer between foot and slider (Coulomb laws) and its law.
+    layer: Layer,
+    friction_law: FrictionLaw,
     friction_model: FrictionModel,
     // Last step's outputs.
     contact_force_n: f64,
@@ -269,9 +278,8 @@ impl Plant {
             slider_x_m: 0.0,
             slider_v_m_s: 0.0,
             bristle_m: 0.0,
-            shear_m: 0.0,
-            shear_rate_m_s: 0.0,
-            layer_damping_n_s_per_m: layer_damping_n_s_per_m(p, kc, c3),
+            layer: Layer::default(),
+            friction_law: friction_law(p, kc, c3),
             friction_model: p.friction.model,
             contact_force_n: preload_n,
             friction_force_n: 0.0,
@@ -552,25 +560,17 @@ impl Plant {
             FrictionModel::Coulomb | FrictionModel::StaticDynamic => {
                 let mu_stick = stick_scale
                     * if self.friction_model == FrictionModel::Coulomb { f.mu_dynamic } else { f.mu_static };
-                // Velocity-level implicit law: the friction needed to make the slider move with
-                // the foot at the end of the step, if within the sticking limit; otherwise
-                // sliding friction (plus εc's viscous part) in the direction of that need.
-                let kt = self.p.contact.tangential_stiffness_n_per_m;
-                if kt > 0.0 {
-                    return self.slider_on_shear_spring(fc, foot_speed, ext, mu_stick, mu_scale);
-                }
-                let need = mass * (foot_speed - v_old) / dt - ext;
-                if fc > 0.0 && need.abs() <= mu_stick * fc {
-                    need
-                } else if fc > 0.0 {
-                    // Implicit viscous part: εc·(ẋ − v_new) with v_new from this same update.
-                    let coulomb = mu_scale * f.mu_dynamic * fc * need.signum();
-                    let k = f.viscous_n_s_per_m * dt / mass;
-                    let v_new = (v_old + dt * (ext + coulomb) / mass + k * foot_speed) / (1.0 + k);
-                    coulomb + f.viscous_n_s_per_m * (foot_speed - v_new)
-                } else {
-                    0.0
-                }
+                let input = StepInput {
+                    dt_s: dt,
+                    mass_kg: mass,
+                    slider_m_s: v_old,
+                    external_n: ext,
+                    contact_n: fc,
+                    foot_m_s: foot_speed,
+                    mu_stick,
+                    mu_scale,
+                };
+                self.layer.step(&self.friction_law, &input)
             }
             FrictionModel::Lugre => {
                 // LuGre with forces proportional to the normal load:
@@ -584,99 +584,6 @@ impl Plant {
                 self.bristle_m = z_new;
                 fc * (s0 * z_new + f.lugre_bristle_damping_s_per_m * z_rate) + f.viscous_n_s_per_m * slip
             }
-        };
-        self.friction_force_n = friction;
-        self.slider_v_m_s = v_old + dt * (ext + friction) / mass;
-        self.slider_x_m += dt * self.slider_v_m_s;
-    }
-
-    /// Coulomb laws with a compliant friction layer: a Kelvin–Voigt layer (shear spring `kt`,
-    /// dashpot `ct`) in series with the Coulomb interface. While the interface sticks, the layer
-    /// carries the foot's motion relative to the slider; when the force it would need exceeds the
-    /// sticking limit the interface slides at μd·Fc, and the layer, carrying that force, relaxes
-    /// toward `F/kt` with its own time constant `ct/kt` (`kt·s + ct·ṡ = F`). Re-sticking happens
-    /// when the interface's slip speed `vf − ṡ − v` crosses zero, so the force is continuous.
-    /// Without contact the layer relaxes toward zero the same way. Implicit in the slider speed
-    /// and the layer's shear, so a stiff layer on a light slider stays stable.
-    fn slider_on_shear_spring(&mut self, fc: f64, foot_speed: f64, ext: f64, mu_stick: f64, mu_scale: f64) {
-        let dt = self.dt_s;
-        let f = &self.p.friction;
-        let mass = self.slider_mass_kg;
-        let kt = self.p.contact.tangential_stiffness_n_per_m;
-        let ct = self.layer_damping_n_s_per_m;
-        if self.p.contact.friction_layer == FrictionLayer::MassScaled {
-            return self.slider_on_mass_scaled_layer(fc, foot_speed, ext, mu_stick, mu_scale);
-        }
-        let v_old = self.slider_v_m_s;
-        // Stick trial by the trapezoidal rule (energy-conserving for the undamped spring, so the
-        // step adds no damping of its own): the layer shears at u = vf − v, s' = s + dt·(u0 + u)/2,
-        // and the force over the step is F = kt·(s + s')/2 + ct·(u0 + u)/2 with u0 last step's
-        // shear rate; v = v_old + dt·(ext + F)/m.
-        let u0 = self.shear_rate_m_s;
-        let a = 0.25 * kt * dt + 0.5 * ct;
-        let v_stick =
-            (v_old + dt / mass * (ext + kt * self.shear_m + a * (u0 + foot_speed))) / (1.0 + dt / mass * a);
-        let u = foot_speed - v_stick;
-        let trial = kt * self.shear_m + a * (u0 + u);
-        let friction = if fc > 0.0 && trial.abs() <= mu_stick * fc {
-            self.shear_m += 0.5 * dt * (u0 + u);
-            self.shear_rate_m_s = u;
-            trial
-        } else {
-            // Sliding (or no contact: no force through the interface).
-            let slide = if fc > 0.0 { mu_scale * f.mu_dynamic * fc * trial.signum() } else { 0.0 };
-            // The layer relaxes toward slide/kt: kt·s' + ct·(s' − s)/dt = slide (implicit Euler:
-            // no overshoot however short ct/kt is against the step).
-            let s_new = (slide + ct / dt * self.shear_m) / (kt + ct / dt);
-            self.shear_rate_m_s = (s_new - self.shear_m) / dt;
-            self.shear_m = s_new;
-            if fc > 0.0 {
-                let k = f.viscous_n_s_per_m * dt / mass;
-                let v_new = (v_old + dt * (ext + slide) / mass + k * foot_speed) / (1.0 + k);
-                slide + f.viscous_n_s_per_m * (foot_speed - v_new)
-            } else {
-                0.0
-            }
-        };
-        self.friction_force_n = friction;
-        self.slider_v_m_s = v_old + dt * (ext + friction) / mass;
-        self.slider_x_m += dt * self.slider_v_m_s;
-    }
-
-    /// [`FrictionLayer::MassScaled`]: backward Euler with the dashpot on the carriage's mass; in
-    /// slip the layer is set to the sliding force's shear at once.
-    fn slider_on_mass_scaled_layer(
-        &mut self,
-        fc: f64,
-        foot_speed: f64,
-        ext: f64,
-        mu_stick: f64,
-        mu_scale: f64,
-    ) {
-        let dt = self.dt_s;
-        let f = &self.p.friction;
-        let mass = self.slider_mass_kg;
-        let kt = self.p.contact.tangential_stiffness_n_per_m;
-        let ct = self.layer_damping_n_s_per_m;
-        let v_old = self.slider_v_m_s;
-        let friction = if fc > 0.0 {
-            let a = kt * dt + ct;
-            let v_new =
-                (v_old + dt / mass * (ext + kt * self.shear_m + a * foot_speed)) / (1.0 + dt / mass * a);
-            let trial = kt * (self.shear_m + dt * (foot_speed - v_new)) + ct * (foot_speed - v_new);
-            if trial.abs() <= mu_stick * fc {
-                self.shear_m += dt * (foot_speed - v_new);
-                trial
-            } else {
-                let slide = mu_scale * f.mu_dynamic * fc * trial.signum();
-                let k = f.viscous_n_s_per_m * dt / mass;
-                let v_new = (v_old + dt * (ext + slide) / mass + k * foot_speed) / (1.0 + k);
-                self.shear_m = slide / kt;
-                slide + f.viscous_n_s_per_m * (foot_speed - v_new)
-            }
-        } else {
-            self.shear_m = 0.0;
-            0.0
         };
         self.friction_force_n = friction;
         self.slider_v_m_s = v_old + dt * (ext + friction) / mass;

@@ -1,0 +1,144 @@
+//! Friction between the foot and the slider for the Coulomb laws (seed eq. 16 and the interface
+//! paper's static/dynamic law), with the friction layer between them: one step of the tangential
+//! contact, shared by the time-domain plant and the steady-state model with the contact's timing
+//! (`steady_contact`), so the two integrate the same law.
+
+use crate::motor::params::FrictionLayer;
+
+/// The layer's constants and the friction coefficients of one run.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrictionLaw {
+    /// Shear stiffness `kt` of the friction layer; 0 = rigid.
+    pub kt_n_per_m: f64,
+    /// Its shear dashpot `ct`.
+    pub ct_n_s_per_m: f64,
+    pub layer: FrictionLayer,
+    /// μd: sliding.
+    pub mu_dynamic: f64,
+    /// εc of eq. (16).
+    pub viscous_n_s_per_m: f64,
+}
+
+/// What one step of the tangential contact acts on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepInput {
+    pub dt_s: f64,
+    pub mass_kg: f64,
+    /// Slider speed at the start of the step.
+    pub slider_m_s: f64,
+    /// External force on the slider over the step (load, guide), along +x.
+    pub external_n: f64,
+    /// Mean normal contact force over the step.
+    pub contact_n: f64,
+    /// Foot's tangential speed at the end of the step.
+    pub foot_m_s: f64,
+    /// Sticking limit as a coefficient (μd for Coulomb, μs for static/dynamic, times effects).
+    pub mu_stick: f64,
+    /// Factor on μd while sliding (effects; 1 in the base model).
+    pub mu_scale: f64,
+}
+
+/// The friction layer's state: its shear (foot contact point minus slider) and shear rate.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Layer {
+    pub shear_m: f64,
+    pub shear_rate_m_s: f64,
+}
+
+impl Layer {
+    /// One step: the friction force on the slider over the step (N). The slider's new speed is
+    /// then `v + dt·(external + friction)/m` (the law is implicit in it).
+    pub fn step(&mut self, law: &FrictionLaw, i: &StepInput) -> f64 {
+        if law.kt_n_per_m <= 0.0 {
+            return rigid(law, i);
+        }
+        match law.layer {
+            FrictionLayer::KelvinVoigt => self.kelvin_voigt(law, i),
+            FrictionLayer::MassScaled => self.mass_scaled(law, i),
+        }
+    }
+
+    /// A Kelvin–Voigt layer (shear spring `kt`, dashpot `ct`) in series with the Coulomb
+    /// interface. While the interface sticks, the layer carries the foot's motion relative to the
+    /// slider; when the force it would need exceeds the sticking limit the interface slides at
+    /// μd·Fc, and the layer, carrying that force, relaxes toward `F/kt` with its own time
+    /// constant `ct/kt` (`kt·s + ct·ṡ = F`). Re-sticking happens when the interface's slip speed
+    /// `vf − ṡ − v` crosses zero, so the force is continuous. Without contact the layer relaxes
+    /// toward zero the same way. Implicit in the slider speed and the shear, so a stiff layer on
+    /// a light slider stays stable.
+    fn kelvin_voigt(&mut self, law: &FrictionLaw, i: &StepInput) -> f64 {
+        let (dt, mass, kt, ct) = (i.dt_s, i.mass_kg, law.kt_n_per_m, law.ct_n_s_per_m);
+        // Stick trial by the trapezoidal rule (energy-conserving for the undamped spring, so the
+        // step adds no damping of its own): the layer shears at u = vf − v, s' = s + dt·(u0 + u)/2,
+        // and the force over the step is F = kt·(s + s')/2 + ct·(u0 + u)/2 with u0 last step's
+        // shear rate; v = v_old + dt·(ext + F)/m.
+        let u0 = self.shear_rate_m_s;
+        let a = 0.25 * kt * dt + 0.5 * ct;
+        let v_stick = (i.slider_m_s + dt / mass * (i.external_n + kt * self.shear_m + a * (u0 + i.foot_m_s)))
+            / (1.0 + dt / mass * a);
+        let u = i.foot_m_s - v_stick;
+        let trial = kt * self.shear_m + a * (u0 + u);
+        if i.contact_n > 0.0 && trial.abs() <= i.mu_stick * i.contact_n {
+            self.shear_m += 0.5 * dt * (u0 + u);
+            self.shear_rate_m_s = u;
+            return trial;
+        }
+        // Sliding (or no contact: no force through the interface).
+        let slide =
+            if i.contact_n > 0.0 { i.mu_scale * law.mu_dynamic * i.contact_n * trial.signum() } else { 0.0 };
+        // The layer relaxes toward slide/kt: kt·s' + ct·(s' − s)/dt = slide (implicit Euler: no
+        // overshoot however short ct/kt is against the step).
+        let s_new = (slide + ct / dt * self.shear_m) / (kt + ct / dt);
+        self.shear_rate_m_s = (s_new - self.shear_m) / dt;
+        self.shear_m = s_new;
+        if i.contact_n > 0.0 {
+            slide + viscous(law, i, slide)
+        } else {
+            0.0
+        }
+    }
+
+    /// [`FrictionLayer::MassScaled`]: backward Euler with the dashpot on the carriage's mass; in
+    /// slip the layer is set to the sliding force's shear at once.
+    fn mass_scaled(&mut self, law: &FrictionLaw, i: &StepInput) -> f64 {
+        let (dt, mass, kt, ct) = (i.dt_s, i.mass_kg, law.kt_n_per_m, law.ct_n_s_per_m);
+        if i.contact_n <= 0.0 {
+            self.shear_m = 0.0;
+            return 0.0;
+        }
+        let a = kt * dt + ct;
+        let v_new = (i.slider_m_s + dt / mass * (i.external_n + kt * self.shear_m + a * i.foot_m_s))
+            / (1.0 + dt / mass * a);
+        let trial = kt * (self.shear_m + dt * (i.foot_m_s - v_new)) + ct * (i.foot_m_s - v_new);
+        if trial.abs() <= i.mu_stick * i.contact_n {
+            self.shear_m += dt * (i.foot_m_s - v_new);
+            trial
+        } else {
+            let slide = i.mu_scale * law.mu_dynamic * i.contact_n * trial.signum();
+            self.shear_m = slide / kt;
+            slide + viscous(law, i, slide)
+        }
+    }
+}
+
+/// Rigid contact (no layer): the friction needed to make the slider move with the foot at the end
+/// of the step, if within the sticking limit; otherwise sliding friction (plus εc's viscous part)
+/// in the direction of that need.
+fn rigid(law: &FrictionLaw, i: &StepInput) -> f64 {
+    let need = i.mass_kg * (i.foot_m_s - i.slider_m_s) / i.dt_s - i.external_n;
+    if i.contact_n <= 0.0 {
+        0.0
+    } else if need.abs() <= i.mu_stick * i.contact_n {
+        need
+    } else {
+        let coulomb = i.mu_scale * law.mu_dynamic * i.contact_n * need.signum();
+        coulomb + viscous(law, i, coulomb)
+    }
+}
+
+/// εc's viscous part `εc·(ẋ − v_new)`, implicit: `v_new` from this same update with `coulomb`.
+fn viscous(law: &FrictionLaw, i: &StepInput, coulomb: f64) -> f64 {
+    let k = law.viscous_n_s_per_m * i.dt_s / i.mass_kg;
+    let v_new = (i.slider_m_s + i.dt_s * (i.external_n + coulomb) / i.mass_kg + k * i.foot_m_s) / (1.0 + k);
+    law.viscous_n_s_per_m * (i.foot_m_s - v_new)
+}
