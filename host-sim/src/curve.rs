@@ -4,6 +4,7 @@ use crate::check::ser;
 use crate::motor::params::Params;
 use crate::motor::plant::steady_speed_m_s;
 use crate::motor::steady::{OperatingPoint, ThrustModel};
+use crate::motor::steady_contact::ContactModel;
 use crate::motor::steady_inertia::InertialModel;
 use serde::Serialize;
 
@@ -18,6 +19,10 @@ pub struct CurvePoint {
     /// The model with the slider's inertia (`steady_inertia`); null where no periodic motion exists.
     #[serde(serialize_with = "ser::mm_s")]
     pub speed_mm_s_inertia: f64,
+    /// The model with the contact's timing and the carriage's inertia (`steady_contact`): the
+    /// steady-state model held to the plant (issue 28); null where no periodic motion exists.
+    #[serde(serialize_with = "ser::mm_s")]
+    pub speed_mm_s_contact: f64,
     #[serde(serialize_with = "ser::mm_s")]
     pub speed_mm_s_sim: f64,
 }
@@ -67,6 +72,7 @@ pub fn compute(
 ) -> Curve {
     let m = ThrustModel::new(p, op);
     let inertial = InertialModel::new(p, op);
+    let contact = ContactModel::new(p, op);
     let stall = m.stall_force_n();
     let n = points.max(2);
     let mut pts = Vec::with_capacity(n);
@@ -74,11 +80,13 @@ pub fn compute(
         let load_n = stall * max_fraction * i as f64 / (n - 1) as f64;
         let model = m.speed_at_load_m_s(load_n).unwrap_or(f64::NAN) * 1e3;
         let inertia = inertial.speed_at_load_m_s(load_n).unwrap_or(f64::NAN) * 1e3;
+        let with_contact = contact.speed_at_load_m_s(load_n).unwrap_or(f64::NAN) * 1e3;
         let sim = steady_speed_m_s(p, op.preload_n, op.voltage_v, op.frequency_hz, direction, load_n) * 1e3;
         pts.push(CurvePoint {
             load_n,
             speed_mm_s_model: model,
             speed_mm_s_inertia: inertia,
+            speed_mm_s_contact: with_contact,
             speed_mm_s_sim: sim,
         });
         progress(i + 1, n);

@@ -7,4 +7,5 @@ pub mod params;
 pub mod plant;
 pub mod roots;
 pub mod steady;
+pub mod steady_contact;
 pub mod steady_inertia;

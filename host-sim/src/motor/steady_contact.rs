@@ -1,0 +1,301 @@
+//! Steady-state thrust with the contact's timing (issue 28): the thrust integral of eq. (19) with
+//! the contact force the stator really makes, on a carriage that rides the foot.
+//!
+//! The constant-speed model (eqs. 13–22) takes the contact force as the linear contact-stage
+//! response cut at zero, `kc·Yc·(cos φ − cos θc/2)` (eq. 15), centred on the foot's peak speed. On
+//! the paper's stator with physical masses the contact force differs from that cap in three ways
+//! the plant shows (`host-sim trace`): it leads the foot's speed through the stator's damping, the
+//! foot lands late with an impact, and at low preload the foot swings free and the landing impact
+//! carries most of the period's normal impulse before the foot's peak speed. All three come from
+//! the stator's normal equations (4) and (6) with the unilateral contact (10) and their dashpots,
+//! so here they are solved rather than approximated:
+//!
+//! 1. **Normal periodic motion.** The 2-DOF stator under the stacks' normal force `F̂·cos φ`
+//!    (eq. 3; φ = ωt from the foot's peak forward speed, where the normal force peaks too: the
+//!    tangential speed is the sum of the stack strokes' rates, the normal force their difference,
+//!    both ∝ cos φ for the quadrature drive), with the preload through the preload spring and the
+//!    contact spring–dashpot of the parameter file (its damping from the restitution) switched on
+//!    while the foot presses. Each contact state is linear, so every step is its exact transition
+//!    (matrix exponential of the state augmented with the drive's cos/sin, so the sine enters
+//!    exactly), and a step in which the state changes is halved until the switch is located to
+//!    `1/2^10` of it. It is run from the static equilibrium until one period's contact impulses
+//!    repeat the last one's. A bouncing foot (restitution well above zero, low preload) may not
+//!    settle into one periodic pattern: then the last [`UNSETTLED_PERIODS`] periods are kept as
+//!    they are and the carriage's orbit runs over all of them ([`ContactProfile::settled`] says
+//!    which). Holds wherever the stator's equations do: the whole band, every preload, impacts of
+//!    any length.
+//! 2. **The carriage's periodic motion** under that contact force and the foot's harmonic
+//!    tangential speed `ω·Xc·cos φ` (eqs. 1, 8), with the carriage's inertia, the load, Coulomb
+//!    friction with εc (eq. 16) and the friction layer between foot and slider — the same step
+//!    the plant takes (`contact_friction`). The periodic speed `v(T) = v(0)` is found by
+//!    regula falsi on `v(0)`, the layer carried over from a first period. The thrust model's
+//!    speed is its mean.
+//!
+//! What it leaves out of the plant: the DAC's 200 kS/s staircase and the amplifier's transient
+//! (its gain is in `Yc`, `Xc`; its phase lag is the same on both channels, so it moves nothing),
+//! and LuGre (the Coulomb laws only; LuGre runs as Coulomb with μd).
+
+use crate::motor::contact_friction::{FrictionLaw, Layer, StepInput};
+use crate::motor::params::{FrictionModel, Params};
+use crate::motor::plant::{friction_law, state_matrix};
+use crate::motor::roots::falling_root;
+use crate::motor::steady::{amplitudes, OperatingPoint};
+use nalgebra::SMatrix;
+use std::f64::consts::{PI, TAU};
+
+/// Steps per drive period of both orbits.
+pub const STEPS: usize = 1024;
+/// The drive's amplitude ramps up over this time, as `steady_speed_m_s` drives the plant.
+const RAMP_S: f64 = 0.01;
+/// Halvings that locate a contact switch inside a step.
+const LEVELS: usize = 10;
+/// Periods the normal motion may take to settle before it is averaged instead.
+const MAX_PERIODS: usize = 600;
+/// Periods kept when the normal motion does not repeat: the carriage's orbit then runs over all
+/// of them. (Averaging the contact force over them instead would smear the impacts, and the
+/// friction layer passes a short, high impact differently from a low, long one.)
+pub const UNSETTLED_PERIODS: usize = 32;
+
+type M7 = SMatrix<f64, 7, 7>;
+type V7 = SMatrix<f64, 7, 1>;
+
+/// The normal contact force over one settled period.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ContactProfile {
+    /// Mean contact force over step i (N); step i spans φ from −π + i·2π/STEPS (modulo one
+    /// period): one period when the motion settled, else [`UNSETTLED_PERIODS`] in a row.
+    pub contact_n: Vec<f64>,
+    /// Peak tangential foot speed ω·Xc (m/s).
+    pub foot_peak_m_s: f64,
+    pub frequency_hz: f64,
+    /// Whether one period's impulses repeated the last one's (else the last periods are kept).
+    pub settled: bool,
+    /// Periods run from the static equilibrium.
+    pub periods: usize,
+}
+
+impl ContactProfile {
+    /// Solves the stator's normal periodic motion at an operating point.
+    pub fn new(p: &Params, op: OperatingPoint) -> Self {
+        let amp = amplitudes(p, op.voltage_v, op.frequency_hz);
+        let w = TAU * op.frequency_hz;
+        let m1 = p.stator.foot_mass_kg;
+        let k1 = p.k1_n_per_m();
+        let k2 = p.stator.preload_spring_n_per_m;
+        let kc = p.effects.contact_stiffness_n_per_m(p.contact.stiffness_n_per_m, op.preload_n);
+        let c3 = 2.0 * p.contact.damping_ratio() * (kc * m1).sqrt();
+        // Static equilibrium with the preload (as the plant starts).
+        let y1 = op.preload_n / kc;
+        let y2 = y1 + op.preload_n / k1;
+        let anchor_force_n = k2 * (y2 + op.preload_n / k2);
+        let h = 1.0 / (op.frequency_hz * STEPS as f64);
+        let augmented = |contact: bool| -> M7 {
+            let a6 = state_matrix(p, contact.then_some((kc, c3)));
+            let mut a = M7::zeros();
+            for i in 0..4 {
+                for j in 0..4 {
+                    a[(i, j)] = a6[(i, j)];
+                }
+                a[(i, 4)] = a6[(i, 4)] * amp.normal_force_n;
+                a[(i, 6)] = a6[(i, 5)] * anchor_force_n;
+            }
+            a[(4, 5)] = -w;
+            a[(5, 4)] = w;
+            a
+        };
+        let levels = |contact: bool| -> Vec<M7> {
+            let a = augmented(contact);
+            (0..=LEVELS).map(|l| (a * (h / f64::from(1u32 << l))).exp()).collect()
+        };
+        let transitions = [levels(false), levels(true)];
+        let force = |x: &V7| if x[0] > 0.0 { (kc * x[0] + c3 * x[1]).max(0.0) } else { 0.0 };
+        let pressing = |x: &V7| x[0] > 0.0 && kc * x[0] + c3 * x[1] > 0.0;
+        // φ = −π at the start: cos = −1, sin = 0.
+        let mut x = V7::from_column_slice(&[y1, 0.0, y2, 0.0, -1e-9, 0.0, 1.0]);
+        let mut last = vec![0.0; STEPS];
+        let mut history: Vec<f64> = Vec::with_capacity(UNSETTLED_PERIODS * STEPS);
+        let scale = op.preload_n.max(1e-3);
+        let ramp_steps = (RAMP_S / h).round().max(1.0);
+        let mut step_count = 0.0;
+        for period in 1..=MAX_PERIODS {
+            let mut now = vec![0.0; STEPS];
+            for slot in now.iter_mut() {
+                // The drive's amplitude ramps up as the plant's does (a bouncing foot may settle
+                // into another pattern after a shock), held over each step.
+                step_count += 1.0;
+                let r = (x[4] * x[4] + x[5] * x[5]).sqrt();
+                let target = (step_count / ramp_steps).min(1.0);
+                x[4] *= target / r;
+                x[5] *= target / r;
+                *slot = advance(&mut x, 0, &transitions, &force, &pressing, h) / h;
+            }
+            let change = now.iter().zip(&last).map(|(a, b)| (a - b).abs()).sum::<f64>() / STEPS as f64;
+            if period > 3 && change < 1e-5 * scale {
+                return ContactProfile {
+                    contact_n: now,
+                    foot_peak_m_s: w * amp.xc_m,
+                    frequency_hz: op.frequency_hz,
+                    settled: true,
+                    periods: period,
+                };
+            }
+            if period > MAX_PERIODS - UNSETTLED_PERIODS {
+                history.extend_from_slice(&now);
+            }
+            last = now;
+        }
+        ContactProfile {
+            contact_n: history,
+            foot_peak_m_s: w * amp.xc_m,
+            frequency_hz: op.frequency_hz,
+            settled: false,
+            periods: MAX_PERIODS,
+        }
+    }
+
+    /// Mean contact force over the period: equals the preload's mean force (eq. 12).
+    pub fn mean_contact_n(&self) -> f64 {
+        self.contact_n.iter().sum::<f64>() / self.contact_n.len() as f64
+    }
+
+    /// Share of the period in which the foot presses.
+    pub fn contact_fraction(&self) -> f64 {
+        self.contact_n.iter().filter(|f| **f > 0.0).count() as f64 / self.contact_n.len() as f64
+    }
+}
+
+/// Advances the normal state over a step of level `lvl`, halving where the contact state changes;
+/// returns the contact impulse over the step (trapezoid per piece).
+fn advance(
+    x: &mut V7,
+    lvl: usize,
+    t: &[Vec<M7>; 2],
+    force: &impl Fn(&V7) -> f64,
+    pressing: &impl Fn(&V7) -> bool,
+    h: f64,
+) -> f64 {
+    let contact = pressing(x);
+    let next = t[usize::from(contact)][lvl] * *x;
+    if pressing(&next) == contact || lvl == LEVELS {
+        let hl = h / f64::from(1u32 << lvl);
+        let impulse = if contact { 0.5 * (force(x) + force(&next)) * hl } else { 0.0 };
+        *x = next;
+        return impulse;
+    }
+    advance(x, lvl + 1, t, force, pressing, h) + advance(x, lvl + 1, t, force, pressing, h)
+}
+
+/// The steady-state model with the contact's timing at one operating point.
+#[derive(Debug, Clone)]
+pub struct ContactModel {
+    pub profile: ContactProfile,
+    pub mass_kg: f64,
+    law: FrictionLaw,
+    mu_stick: f64,
+    /// The guide's viscous drag (`slider.damping_n_s_per_m`).
+    guide_n_s_per_m: f64,
+    /// cos φ at the step ends.
+    cos_end: Vec<f64>,
+}
+
+/// The carriage's periodic motion at one load.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Orbit {
+    pub mean_speed_m_s: f64,
+    /// Peak-to-peak speed ripple within the period.
+    pub ripple_m_s: f64,
+}
+
+impl ContactModel {
+    pub fn new(p: &Params, op: OperatingPoint) -> Self {
+        let profile = ContactProfile::new(p, op);
+        let kc = p.effects.contact_stiffness_n_per_m(p.contact.stiffness_n_per_m, op.preload_n);
+        let c3 = 2.0 * p.contact.damping_ratio() * (kc * p.stator.foot_mass_kg).sqrt();
+        let mu_stick = match p.friction.model {
+            FrictionModel::StaticDynamic => p.friction.mu_static,
+            FrictionModel::Coulomb | FrictionModel::Lugre => p.friction.mu_dynamic,
+        };
+        ContactModel {
+            profile,
+            mass_kg: p.effects.slider_mass_kg(p.slider.mass_kg),
+            law: friction_law(p, kc, c3),
+            mu_stick,
+            guide_n_s_per_m: p.slider.damping_n_s_per_m,
+            cos_end: (1..=STEPS).map(|i| (-PI + TAU * i as f64 / STEPS as f64).cos()).collect(),
+        }
+    }
+
+    /// One period from speed `v0` and layer state `layer`: (end speed, mean speed, ripple, end
+    /// layer).
+    fn period(&self, v0: f64, mut layer: Layer, load_n: f64) -> (f64, f64, f64, Layer) {
+        let h = 1.0 / (self.profile.frequency_hz * STEPS as f64);
+        let (mut v, mut sum, mut lo, mut hi) = (v0, 0.0, v0, v0);
+        for (fc, c) in self.profile.contact_n.iter().zip(self.cos_end.iter().cycle()) {
+            let external_n = -load_n - self.guide_n_s_per_m * v;
+            let input = StepInput {
+                dt_s: h,
+                mass_kg: self.mass_kg,
+                slider_m_s: v,
+                external_n,
+                contact_n: *fc,
+                foot_m_s: self.profile.foot_peak_m_s * c,
+                mu_stick: self.mu_stick,
+                mu_scale: 1.0,
+            };
+            let friction = layer.step(&self.law, &input);
+            v += h * (external_n + friction) / self.mass_kg;
+            sum += v;
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        (v, sum / self.profile.contact_n.len() as f64, hi - lo, layer)
+    }
+
+    /// The period from `v0` after one period that settles the layer.
+    fn settled_period(&self, v0: f64, load_n: f64) -> (f64, f64, f64) {
+        let (_, _, _, layer) = self.period(v0, Layer::default(), load_n);
+        let (end, mean, ripple, _) = self.period(v0, layer, load_n);
+        (end, mean, ripple)
+    }
+
+    /// The periodic motion under a constant load opposing the drive; `None` when none exists in
+    /// ±4× the foot's peak speed.
+    pub fn orbit(&self, load_n: f64) -> Option<Orbit> {
+        let w = self.profile.foot_peak_m_s.max(1e-9);
+        let excess = |v0: f64| self.settled_period(v0, load_n).0 - v0;
+        let (lo, hi) = (-4.0 * w, 4.0 * w);
+        if excess(lo) <= 0.0 || excess(hi) >= 0.0 {
+            return None;
+        }
+        let root = falling_root(excess, lo, hi, 1e-8);
+        let (_, mean, ripple) = self.settled_period(root, load_n);
+        Some(Orbit { mean_speed_m_s: mean, ripple_m_s: ripple })
+    }
+
+    pub fn speed_at_load_m_s(&self, load_n: f64) -> Option<f64> {
+        self.orbit(load_n).map(|o| o.mean_speed_m_s)
+    }
+
+    pub fn no_load_speed_m_s(&self) -> f64 {
+        self.speed_at_load_m_s(0.0).unwrap_or(0.0)
+    }
+
+    /// The load at which the mean speed falls to zero: bisection to 1e-4 of μ·F0.
+    pub fn stall_force_n(&self) -> f64 {
+        let forward = |load: f64| self.speed_at_load_m_s(load).is_some_and(|v| v > 0.0);
+        let top = self.mu_stick * self.profile.mean_contact_n().max(1e-9);
+        if !forward(0.0) {
+            return 0.0;
+        }
+        let (mut lo, mut hi) = (0.0, top);
+        while hi - lo > 1e-4 * top {
+            let mid = 0.5 * (lo + hi);
+            if forward(mid) {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
+    }
+}
