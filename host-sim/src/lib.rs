@@ -14,6 +14,7 @@ pub mod virtual_controller;
 
 pub mod check;
 pub mod curve;
+pub mod model_grid;
 pub mod paper;
 pub mod plant_figures;
 pub mod plot;

@@ -118,6 +118,18 @@ fn run(cli: Cli) -> Result<()> {
                 }
             }
         }
+        Command::ModelGrid { json } => {
+            let grid = host_sim::model_grid::compute(&params);
+            if json {
+                println!("{}", serde_json::to_string_pretty(&grid)?);
+            } else {
+                println!("worst error in % of the plant's no-load speed, per carriage:");
+                println!("{:>9} {:>15} {:>15} {:>15}", "carriage", "constant-speed", "inertia", "contact");
+                for (m, c, i, k) in host_sim::model_grid::worst_per_mass(&grid) {
+                    println!("{:>6} kg {c:>14.1}% {i:>14.1}% {k:>14.1}%", m);
+                }
+            }
+        }
         Command::Paper { json, model_only } => {
             let evaluate =
                 if model_only { paper::Evaluate::ModelOnly } else { paper::Evaluate::ModelAndPlant };

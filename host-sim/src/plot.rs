@@ -216,3 +216,58 @@ pub fn period_labelled(traces: &[crate::trace::PeriodTrace], labels: &[String], 
     root.present().map_err(err)?;
     Ok(())
 }
+
+/// Issue 28's grid: each model's speed against the plant's at the same point (on the diagonal
+/// where they agree).
+pub fn model_grid(grid: &[crate::model_grid::GridPoint], title: &str, path: &Path) -> Result<()> {
+    let root = SVGBackend::new(path, (760, 640)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| anyhow!("plot: {e}"))?;
+    let all = grid.iter().flat_map(|g| [g.plant_mm_s, g.constant_speed_mm_s, g.inertia_mm_s, g.contact_mm_s]);
+    let finite: Vec<f64> = all.filter(|v| v.is_finite()).collect();
+    let lo = finite.iter().copied().fold(0.0, f64::min).floor();
+    let hi = finite.iter().copied().fold(1.0, f64::max).ceil();
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 18))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(60)
+        .build_cartesian_2d(lo..hi, lo..hi)
+        .map_err(|e| anyhow!("plot: {e}"))?;
+    chart
+        .configure_mesh()
+        .x_desc("time-domain plant (mm/s)")
+        .y_desc("steady-state model (mm/s)")
+        .draw()
+        .map_err(|e| anyhow!("plot: {e}"))?;
+    chart
+        .draw_series(LineSeries::new([(lo, lo), (hi, hi)], BLACK.stroke_width(1)))
+        .map_err(|e| anyhow!("plot: {e}"))?
+        .label("model = plant")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
+    type Pick = fn(&crate::model_grid::GridPoint) -> f64;
+    let series: [(&str, Pick, RGBColor); 3] = [
+        ("constant speed (eqs. 19–22)", |g| g.constant_speed_mm_s, BLUE),
+        ("with the carriage's inertia", |g| g.inertia_mm_s, GREEN),
+        ("with the contact's timing (steady_contact)", |g| g.contact_mm_s, RED),
+    ];
+    for (label, pick, color) in series {
+        chart
+            .draw_series(
+                grid.iter()
+                    .filter(|g| pick(g).is_finite() && g.plant_mm_s.is_finite())
+                    .map(|g| Circle::new((g.plant_mm_s, pick(g)), 3, color.filled())),
+            )
+            .map_err(|e| anyhow!("plot: {e}"))?
+            .label(label)
+            .legend(move |(x, y)| Circle::new((x + 10, y), 4, color.filled()));
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperLeft)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| anyhow!("plot: {e}"))?;
+    root.present().map_err(|e| anyhow!("plot: {e}"))?;
+    Ok(())
+}

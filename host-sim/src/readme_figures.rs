@@ -13,7 +13,7 @@ use crate::harness::moves;
 use crate::motor::params::Params;
 use crate::motor::steady::{OperatingPoint, ThrustModel};
 use crate::motor::steady_inertia::InertialModel;
-use crate::{curve, gap, plot, trace};
+use crate::{curve, gap, model_grid, plot, trace};
 use anyhow::{bail, Context, Result};
 use piezo_drive::settings::{DefaultValue, Keep, Range, Setting, Ty, Value, SETTINGS};
 use rayon::prelude::*;
@@ -31,6 +31,7 @@ pub struct ReadmeFiguresOptions {
 }
 
 const HEAVY_SLIDER: &str = "host-sim/params/heavy-slider.toml";
+const SOURCED: &str = "host-sim/params/prototype-sourced.toml";
 const EXAMPLE_CSV: &str = "host-sim/data/example-measured.csv";
 
 /// A generated table.
@@ -140,6 +141,17 @@ fn slider_mass_table(p: &Params) -> String {
 }
 
 /// The gap workflow on the shipped example: what it names and how far the gap closes.
+/// Worst error of each steady-state model per carriage over issue 28's grid.
+fn model_grid_table(grid: &[model_grid::GridPoint]) -> String {
+    let mut t = String::from(
+        "| carriage | constant speed (eqs. 19–22) | with the carriage's inertia | with the contact's timing |\n|---|---|---|---|\n",
+    );
+    for (m, constant, inertia, contact) in model_grid::worst_per_mass(grid) {
+        let _ = writeln!(t, "| {m} kg | {constant:.1} % | {inertia:.1} % | {contact:.1} % |");
+    }
+    t
+}
+
 fn gap_table(r: &gap::GapReport) -> String {
     let mut t = String::from("| | result |\n|---|---|\n");
     let _ =
@@ -258,6 +270,14 @@ fn generate(root: &Path, docs: &Path) -> Result<Vec<Table>> {
     ];
     plot::period_labelled(&pair.concat(), &labels, &docs.join("period-preload-damping-1500hz.svg"))?;
 
+    let sourced = Params::load(&root.join(SOURCED))?;
+    let grid = model_grid::compute(&sourced);
+    plot::model_grid(
+        &grid,
+        "Issue 28 grid, prototype-sourced: 0.1–50 kg, 5–18 N, 1.5/2.2 kHz, 0–70 % of stall",
+        &docs.join("model-grid.svg"),
+    )?;
+
     let csv = root.join(EXAMPLE_CSV);
     let rows = measured_csv::read(&csv)?;
     let report = gap::analyze(&heavy, &rows, &gap::Options::default(), &|_, _, _| {})?;
@@ -276,11 +296,13 @@ fn generate(root: &Path, docs: &Path) -> Result<Vec<Table>> {
         Table { name: "slider-mass-speeds", text: slider_mass_table(&proto) },
         Table { name: "gap-example", text: gap_table(&report) },
         Table { name: "parameters", text: parameters_table() },
+        Table { name: "model-grid", text: model_grid_table(&grid) },
     ])
 }
 
 /// The figures `generate` writes.
-pub const FIGURES: [&str; 6] = [
+pub const FIGURES: [&str; 7] = [
+    "model-grid.svg",
     "demo.svg",
     "thrust-velocity.svg",
     "period-prototype-1500hz.svg",

@@ -50,6 +50,15 @@ pub enum Command {
         #[arg(long, value_name = "FILE.svg")]
         plot: Option<PathBuf>,
     },
+    /// The steady-state models against the plant over issue 28's grid (0.1–50 kg, 5–18 N,
+    /// 1.5/2.2 kHz, loads 0/35/70 % of stall, 100 V): each model's worst error per carriage in %
+    /// of the plant's no-load speed. Use `--params host-sim/params/prototype-sourced.toml` for the
+    /// sourced plant. About 2 s on 2 cores.
+    ModelGrid {
+        /// Print every grid point as JSON instead of the table.
+        #[arg(long)]
+        json: bool,
+    },
     /// The paper's figures (physics.md §5, in ../shared/ beside the checkout): theirs, ours, the
     /// band we hold, pass/fail.
     Paper {

@@ -1,0 +1,108 @@
+//! The steady-state models against the time-domain plant over issue 28's grid: carriages ×
+//! preloads × drive frequencies × loads, each model's speed against the plant's, in % of the
+//! plant's no-load speed at that point. `host-sim model-grid` prints it; the docs' table and
+//! figure (`readme-figures`) and the tests hold it.
+
+use crate::motor::params::Params;
+use crate::motor::plant::steady_speed_m_s;
+use crate::motor::steady::{OperatingPoint, ThrustModel};
+use crate::motor::steady_contact::ContactModel;
+use crate::motor::steady_inertia::InertialModel;
+use rayon::prelude::*;
+use serde::Serialize;
+
+pub const MASSES_KG: [f64; 5] = [0.1, 0.3, 1.0, 5.0, 50.0];
+pub const PRELOADS_N: [f64; 4] = [5.0, 10.0, 16.0, 18.0];
+pub const FREQUENCIES_HZ: [f64; 2] = [1500.0, 2200.0];
+/// Loads as shares of the stall force of the model with the contact's timing.
+pub const LOAD_SHARES: [f64; 3] = [0.0, 0.35, 0.7];
+
+/// One grid point: speeds in mm/s (NaN where a model has no periodic motion).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct GridPoint {
+    pub slider_mass_kg: f64,
+    pub preload_n: f64,
+    pub frequency_hz: f64,
+    pub load_n: f64,
+    pub plant_mm_s: f64,
+    pub plant_no_load_mm_s: f64,
+    pub constant_speed_mm_s: f64,
+    pub inertia_mm_s: f64,
+    pub contact_mm_s: f64,
+}
+
+impl GridPoint {
+    /// A model's error in % of the plant's no-load speed here.
+    pub fn error_percent(&self, model_mm_s: f64) -> f64 {
+        100.0 * (model_mm_s - self.plant_mm_s) / self.plant_no_load_mm_s.abs().max(1e-9)
+    }
+}
+
+/// The grid at 100 V for the file `p` (its carriage mass replaced by each of [`MASSES_KG`]).
+pub fn compute(p: &Params) -> Vec<GridPoint> {
+    let mut cases = Vec::new();
+    for &m in &MASSES_KG {
+        for &f0 in &PRELOADS_N {
+            for &hz in &FREQUENCIES_HZ {
+                cases.push((m, f0, hz));
+            }
+        }
+    }
+    cases
+        .par_iter()
+        .flat_map_iter(|&(mass_kg, preload_n, frequency_hz)| {
+            let mut q = p.clone();
+            q.slider.mass_kg = mass_kg;
+            let op = OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz };
+            let contact = ContactModel::new(&q, op);
+            let inertial = InertialModel::new(&q, op);
+            let constant = ThrustModel::new(&q, op);
+            let stall = contact.stall_force_n();
+            let plant = |load: f64| steady_speed_m_s(&q, preload_n, 100.0, frequency_hz, 1, load) * 1e3;
+            let no_load = plant(0.0);
+            LOAD_SHARES
+                .iter()
+                .map(|share| {
+                    let load_n = share * stall;
+                    let mm_s = |v: Option<f64>| v.map_or(f64::NAN, |v| v * 1e3);
+                    GridPoint {
+                        slider_mass_kg: mass_kg,
+                        preload_n,
+                        frequency_hz,
+                        load_n,
+                        plant_mm_s: if load_n == 0.0 { no_load } else { plant(load_n) },
+                        plant_no_load_mm_s: no_load,
+                        constant_speed_mm_s: mm_s(constant.speed_at_load_m_s(load_n)),
+                        inertia_mm_s: mm_s(inertial.speed_at_load_m_s(load_n)),
+                        contact_mm_s: mm_s(contact.speed_at_load_m_s(load_n)),
+                    }
+                })
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
+
+/// Worst absolute error (% of the plant's no-load speed) of each model per carriage:
+/// `(mass, constant-speed, inertial, contact)`; a model with no periodic motion where the plant
+/// has one counts as 100 %.
+pub fn worst_per_mass(grid: &[GridPoint]) -> Vec<(f64, f64, f64, f64)> {
+    MASSES_KG
+        .iter()
+        .map(|&m| {
+            let worst = |pick: fn(&GridPoint) -> f64| {
+                grid.iter()
+                    .filter(|g| g.slider_mass_kg == m)
+                    .map(|g| {
+                        let e = g.error_percent(pick(g)).abs();
+                        if e.is_finite() {
+                            e
+                        } else {
+                            100.0
+                        }
+                    })
+                    .fold(0.0, f64::max)
+            };
+            (m, worst(|g| g.constant_speed_mm_s), worst(|g| g.inertia_mm_s), worst(|g| g.contact_mm_s))
+        })
+        .collect()
+}
