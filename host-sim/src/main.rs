@@ -430,7 +430,7 @@ fn run(cli: Cli) -> Result<()> {
                     r.result
                 );
             }
-            plot::motion(&trace, "demo sequence: position and drive", &plot_path)?;
+            plot::demo(&trace, &rows, &plot_path)?;
             println!("plot written to {}", plot_path.display());
             let op = OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 };
             println!("\nThrust–velocity characteristic at the paper's test point:");
@@ -470,15 +470,21 @@ fn print_curve(c: &curve::Curve) {
         c.slider_mass_kg, c.stall_force_inertia_n, c.no_load_speed_inertia_mm_s
     );
     println!(
-        "{:>10} {:>16} {:>18} {:>16} {:>9}",
-        "load N", "model mm/s", "+inertia mm/s", "plant mm/s", "diff %"
+        "{:>10} {:>16} {:>18} {:>18} {:>16} {:>9}",
+        "load N", "model mm/s", "+inertia mm/s", "+contact mm/s", "plant mm/s", "diff %"
     );
+    let plant_no_load = c.points.first().map_or(1.0, |p| p.speed_mm_s_sim.abs().max(1e-9));
     for p in &c.points {
-        // The plant against the model that knows the slider's mass.
-        let diff = 100.0 * (p.speed_mm_s_sim - p.speed_mm_s_inertia) / p.speed_mm_s_inertia.abs().max(1e-9);
+        // The plant against the model with the contact's timing, in % of the plant's no-load speed.
+        let diff = 100.0 * (p.speed_mm_s_sim - p.speed_mm_s_contact) / plant_no_load;
         println!(
-            "{:>10.3} {:>16.4} {:>18.4} {:>16.4} {:>9.2}",
-            p.load_n, p.speed_mm_s_model, p.speed_mm_s_inertia, p.speed_mm_s_sim, diff
+            "{:>10.3} {:>16.4} {:>18.4} {:>18.4} {:>16.4} {:>9.2}",
+            p.load_n, p.speed_mm_s_model, p.speed_mm_s_inertia, p.speed_mm_s_contact, p.speed_mm_s_sim, diff
         );
     }
+    println!(
+        "model: constant speed (eqs. 19–22); +inertia: with the carriage's inertia; +contact: with the \
+         contact's timing too (steady_contact); diff %: plant minus +contact, in % of the plant's \
+         no-load speed"
+    );
 }

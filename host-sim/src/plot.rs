@@ -271,3 +271,152 @@ pub fn model_grid(grid: &[crate::model_grid::GridPoint], title: &str, path: &Pat
     root.present().map_err(|e| anyhow!("plot: {e}"))?;
     Ok(())
 }
+
+/// The demo sequence as a motion-control user reads it: position against the reference with each
+/// step labelled (and the drive frequency and preload it ran at), the following error on a log
+/// scale that shows the 1 mm move and the 100 nm step alike, and one panel per small step.
+pub fn demo(
+    trace: &[crate::harness::moves::TracePoint],
+    rows: &[crate::harness::moves::DemoRow],
+    path: &Path,
+) -> Result<()> {
+    let e = |err: DrawingAreaErrorKind<_>| anyhow!("plot: {err}");
+    let root = SVGBackend::new(path, (1000, 980)).into_drawing_area();
+    root.fill(&WHITE).map_err(e)?;
+    let (top, rest) = root.split_vertically(360);
+    let (middle, bottom) = rest.split_vertically(300);
+    let t_max = trace.last().map_or(1.0, |t| t.time_s).max(1e-3);
+    let um = |nm: f64| nm * 1e-3;
+    let (lo, hi) = trace
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| (a.min(t.position_nm), b.max(t.position_nm)));
+    let (lo, hi) = if lo.is_finite() { (lo, hi) } else { (0.0, 1.0) };
+    let pad = (hi - lo).max(1.0) * 0.08;
+    let mut pos = ChartBuilder::on(&top)
+        .caption("demo: the firmware's controller against the plant (1 kg carriage)", ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(30)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..t_max, um(lo - pad)..um(hi + 2.0 * pad))
+        .map_err(e)?;
+    pos.configure_mesh().y_desc("position (µm)").draw().map_err(e)?;
+    pos.draw_series(LineSeries::new(
+        trace.iter().map(|t| (t.time_s, um(t.reference_nm))),
+        BLUE.stroke_width(1),
+    ))
+    .map_err(e)?
+    .label("reference (profile)")
+    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+    pos.draw_series(LineSeries::new(
+        trace.iter().map(|t| (t.time_s, um(t.position_nm))),
+        RED.mix(0.7).stroke_width(2),
+    ))
+    .map_err(e)?
+    .label("slider (plant, true position)")
+    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
+    // Each traced step: a numbered line at its start, and the list of steps with the drive
+    // frequency and preload each ran at.
+    let at = |s: f64| trace.iter().find(|t| t.time_s >= s);
+    let traced: Vec<_> = rows.iter().filter(|r| r.trace_span_s.1 > r.trace_span_s.0).collect();
+    let x_text = t_max * 0.42;
+    for (i, r) in traced.iter().enumerate() {
+        let (s0, _) = r.trace_span_s;
+        let Some(p) = at(s0) else { continue };
+        pos.draw_series(LineSeries::new([(s0, um(lo - pad)), (s0, um(hi + pad))], BLACK.mix(0.3)))
+            .map_err(e)?;
+        pos.draw_series(std::iter::once(Text::new(
+            format!("{}", i + 1),
+            (s0, um(hi + 1.3 * pad)),
+            ("sans-serif", 13),
+        )))
+        .map_err(e)?;
+        let line = format!(
+            "{}  {}: {:.1} kHz, preload {:.1} N",
+            i + 1,
+            r.step,
+            p.drive_frequency_hz * 1e-3,
+            p.preload_n
+        );
+        let y = um(lo + (hi - lo) * (0.78 - 0.06 * i as f64));
+        pos.draw_series(std::iter::once(Text::new(line, (x_text, y), ("sans-serif", 12)))).map_err(e)?;
+    }
+    pos.configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .draw()
+        .map_err(e)?;
+
+    // Following error |slider − reference| on a log scale: 1 nm to the move's largest.
+    let err_max = trace.iter().map(|t| (t.position_nm - t.reference_nm).abs()).fold(100.0, f64::max) * 2.0;
+    let mut ferr = ChartBuilder::on(&middle)
+        .margin(12)
+        .x_label_area_size(35)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..t_max, (1.0..err_max).log_scale())
+        .map_err(e)?;
+    ferr.configure_mesh().x_desc("time (s)").y_desc("|following error| (nm)").draw().map_err(e)?;
+    ferr.draw_series(LineSeries::new(
+        trace.iter().map(|t| (t.time_s, (t.position_nm - t.reference_nm).abs().max(1.0))),
+        MAGENTA.stroke_width(1),
+    ))
+    .map_err(e)?
+    .label("following error")
+    .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], MAGENTA));
+    ferr.draw_series(LineSeries::new([(0.0, 50.0), (t_max, 50.0)], BLACK.stroke_width(2)))
+        .map_err(e)?
+        .label("one encoder count (50 nm)")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
+    ferr.configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .draw()
+        .map_err(e)?;
+
+    // The small steps, each in its own panel: position and reference from the step's start (nm)
+    // over its first 20 ms, with the ±1 count band around the target.
+    let steps: Vec<&crate::harness::moves::DemoRow> =
+        rows.iter().filter(|r| r.step.starts_with("step ")).collect();
+    let panels = bottom.split_evenly((1, steps.len().max(1)));
+    for (panel, r) in panels.iter().zip(&steps) {
+        let (s0, s1) = r.trace_span_s;
+        let window = (s1 - s0).min(0.02);
+        let pts: Vec<_> = trace.iter().filter(|t| t.time_s >= s0 && t.time_s <= s0 + window).collect();
+        let Some(first) = pts.first() else { continue };
+        let base = first.reference_nm;
+        let target = r.target_um * 1e3 - base;
+        let (a, b) = pts.iter().fold((0.0f64, target), |(a, b), t| {
+            (a.min(t.position_nm - base).min(t.reference_nm - base), b.max(t.position_nm - base))
+        });
+        let span = (b - a).max(1.0);
+        let mut c = ChartBuilder::on(panel)
+            .caption(r.step, ("sans-serif", 14))
+            .margin(10)
+            .x_label_area_size(35)
+            .y_label_area_size(55)
+            .build_cartesian_2d(0.0..window * 1e3, (a - 0.1 * span)..(b + 0.15 * span))
+            .map_err(e)?;
+        c.configure_mesh()
+            .x_desc("ms from the step")
+            .y_desc("nm from the start")
+            .x_labels(5)
+            .draw()
+            .map_err(e)?;
+        c.draw_series(LineSeries::new(
+            pts.iter().map(|t| ((t.time_s - s0) * 1e3, t.reference_nm - base)),
+            BLUE,
+        ))
+        .map_err(e)?;
+        c.draw_series(LineSeries::new(
+            pts.iter().map(|t| ((t.time_s - s0) * 1e3, t.position_nm - base)),
+            RED.mix(0.7).stroke_width(2),
+        ))
+        .map_err(e)?;
+        for band in [target - 50.0, target + 50.0] {
+            c.draw_series(LineSeries::new([(0.0, band), (window * 1e3, band)], BLACK.mix(0.3))).map_err(e)?;
+        }
+    }
+    root.present().map_err(e)?;
+    Ok(())
+}

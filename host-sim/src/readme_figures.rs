@@ -241,8 +241,8 @@ fn generate(root: &Path, docs: &Path) -> Result<Vec<Table>> {
     let heavy = Params::load(&root.join(HEAVY_SLIDER))?;
     let op = OperatingPoint { preload_n: 16.0, voltage_v: 100.0, frequency_hz: 1500.0 };
 
-    let (_, demo_trace) = moves::demo(&proto, |_| {})?;
-    plot::motion(&demo_trace, "demo sequence: position and drive", &docs.join("demo.svg"))?;
+    let (demo_rows, demo_trace) = moves::demo(&proto, |_| {})?;
+    plot::demo(&demo_trace, &demo_rows, &docs.join("demo.svg"))?;
 
     let c = curve::compute(&proto, op, 1, 8, 0.9, |_, _| {});
     plot::thrust_velocity(&c, &docs.join("thrust-velocity.svg"))?;

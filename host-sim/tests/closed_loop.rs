@@ -596,7 +596,7 @@ fn unknown_loads_at_70_percent_of_each_plants_stall_settle_without_a_fault() {
                 "{case}: settle {:?} s (limit {limit_s:.3} s), overshoot {:.1} nm, {} Hz",
                 r.settle_time_s, r.overshoot_nm, r.drive_frequency_hz
             );
-            let outcome = (r.fault.as_ref().map(|f| f.text), r.settle_time_s, r.final_error_nm);
+            let outcome = (r.fault.as_ref().map(|f| f.text.clone()), r.settle_time_s, r.final_error_nm);
             assert!(r.fault.is_none() && r.settle_time_s.is_some(), "{case}: {outcome:?}");
             let bound = match (preload_n as u32, mass_kg) {
                 (5, 0.1) => 450.0,

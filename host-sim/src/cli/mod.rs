@@ -97,7 +97,8 @@ pub enum Command {
         /// Preload force F0 (N).
         #[arg(long, default_value_t = 16.0, allow_negative_numbers = true)]
         preload_n: f64,
-        /// Constant load opposing the motion (N), as a hanging weight.
+        /// Constant load opposing the motion (N), as a hanging weight; a negative value pushes
+        /// the slider along the move instead (an assisting load).
         #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
         load_n: f64,
         /// Switch the thrust-model feedforward off (plain feedback).
@@ -123,10 +124,11 @@ pub enum Command {
         #[arg(long, value_name = "FILE.svg", default_value = "demo.svg")]
         plot: PathBuf,
     },
-    /// The controller across carriages: the file's own and 0.1, 0.3, 1, 5 and 50 kg, each with a
-    /// 1 mm move, 100 nm / 1 µm / 10 µm steps, 1 mm against an unknown 2 N and against a known
-    /// 2 N with plain PI; one row per case (settle time, its ratio to the plant's physical limit,
-    /// overshoot, peak following error, fault).
+    /// The controller across carriages: the file's own and 0.1, 0.3, 1, 5 and 50 kg, each with
+    /// seven rows: a 1 mm move; 100 nm, 1 µm and 10 µm steps; 1 mm against an unknown 2 N; 1 mm
+    /// against an unknown 70 % of that plant's stall force (the highest it has over 0.5–2.2 kHz);
+    /// 1 mm against a known 2 N with plain PI. Each row: load, settle time, its ratio to the
+    /// plant's physical limit, overshoot, peak following error, the drive frequency chosen, fault.
     Sweep {
         /// Print one JSON array of rows instead of the table.
         #[arg(long)]

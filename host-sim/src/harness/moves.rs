@@ -4,7 +4,7 @@ use crate::check::ser;
 use crate::harness::sil::{controller_config, Sil};
 use crate::motor::params::Params;
 use crate::motor::plant::ExternalLoad;
-use piezo_drive::controller::{ControllerConfig, State};
+use piezo_drive::controller::{CommandError, ControllerConfig, FaultCode, State};
 use serde::Serialize;
 
 /// Outcome of one move, measured on the plant's true slider position. JSON values are rounded
@@ -48,7 +48,7 @@ pub struct MoveResult {
 #[derive(Debug, Clone, Serialize)]
 pub struct FaultReport {
     pub code: u8,
-    pub text: &'static str,
+    pub text: String,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -57,15 +57,33 @@ pub struct TracePoint {
     pub position_nm: f64,
     pub reference_nm: f64,
     pub drive_v: f64,
+    /// Coarse drive frequency the controller uses (Hz).
+    pub drive_frequency_hz: f64,
+    /// Preload the force cell reads (N).
+    pub preload_n: f64,
 }
 
 /// A simulated board at rest with servo on, preload settled.
 pub fn ready_board(p: &Params, cfg: ControllerConfig, preload_n: f64) -> anyhow::Result<Sil> {
+    try_ready_board(p, cfg, preload_n)?
+        .map_err(|(e, _)| anyhow::anyhow!("servo on refused: {}", command_error_text(e)))
+}
+
+/// As [`ready_board`], with the controller's refusal of servo on (and the board, for its
+/// configuration) as a value instead of an error.
+#[allow(clippy::type_complexity)]
+pub fn try_ready_board(
+    p: &Params,
+    cfg: ControllerConfig,
+    preload_n: f64,
+) -> anyhow::Result<Result<Sil, (piezo_drive::controller::CommandError, Box<Sil>)>> {
     let mut sil = Sil::new(p, cfg, preload_n, 7)?;
     // Let the force-cell filter settle before the servo is switched on.
     sil.run_until(0.05, |_| false);
-    sil.controller.set_servo(true).map_err(|e| anyhow::anyhow!("servo on refused: {e:?}"))?;
-    Ok(sil)
+    Ok(match sil.controller.set_servo(true) {
+        Ok(()) => Ok(sil),
+        Err(e) => Err((e, Box::new(sil))),
+    })
 }
 
 /// Commands a move to `to_nm` and runs until settled for `hold_s` (or `max_s` passed).
@@ -89,7 +107,7 @@ pub fn run_move(sil: &mut Sil, to_nm: i64, max_s: f64, hold_s: f64) -> MoveResul
         trace: Vec::new(),
     };
     if let Err(e) = sil.controller.move_to(to_nm) {
-        result.fault = Some(FaultReport { code: 0, text: command_error_text(e) });
+        result.fault = Some(FaultReport { code: 0, text: command_error_text(e).to_string() });
         result.final_error_nm = from_nm - to_nm as f64;
         return result;
     }
@@ -111,19 +129,22 @@ pub fn run_move(sil: &mut Sil, to_nm: i64, max_s: f64, hold_s: f64) -> MoveResul
         let c = &sil.controller;
         result.max_following_error_um =
             result.max_following_error_um.max(c.max_following_error_nm() as f64 * 1e-3);
-        if k.is_multiple_of(10) {
+        // Every period over a move's first 50 ms (small steps settle within it), then every 10th.
+        if t < 0.05 || k.is_multiple_of(10) {
             result.trace.push(TracePoint {
                 time_s: t,
                 position_nm: pos,
                 reference_nm: c.reference_nm() as f64,
                 drive_v: c.drive_voltage_v() as f64,
+                drive_frequency_hz: f64::from(c.coarse_frequency_hz()),
+                preload_n: c.preload_n().map_or(f64::NAN, f64::from),
             });
         }
         if result.on_target_time_s.is_none() && c.on_target() {
             result.on_target_time_s = Some(t);
         }
         if let State::Fault(code) = c.state() {
-            result.fault = Some(FaultReport { code: code as u8, text: code.text() });
+            result.fault = Some(FaultReport { code: code as u8, text: code.text().to_string() });
             result.slide_back_nm = Some(retreat_nm);
             break;
         }
@@ -177,7 +198,38 @@ pub fn single_move(p: &Params, spec: MoveSpec) -> anyhow::Result<MoveResult> {
     if load_known {
         cfg.expected_load_n = (load_n * to_um.signum()) as f32;
     }
-    let mut sil = ready_board(p, cfg, preload_n)?;
+    let (min_n, max_n) = (cfg.preload_min_n, cfg.preload_max_n);
+    let mut sil = match try_ready_board(p, cfg, preload_n)? {
+        Ok(sil) => sil,
+        Err((e, sil)) => {
+            // Refused before it starts: the result says why, in a sentence (with the window when
+            // that is the reason), and the slider has not moved.
+            let text = match e {
+                CommandError::PreloadOutOfWindow => format!(
+                    "servo on refused: the preload {:.2} N is outside the usable window {min_n:.1}–{max_n:.1} N",
+                    sil.plant.preload_force_n()
+                ),
+                other => format!("servo on refused: {}", command_error_text(other)),
+            };
+            let code =
+                if e == CommandError::PreloadOutOfWindow { FaultCode::PreloadOutOfWindow as u8 } else { 0 };
+            return Ok(MoveResult {
+                from_um: 0.0,
+                to_um,
+                preload_n: sil.plant.preload_force_n(),
+                load_n,
+                settle_time_s: None,
+                on_target_time_s: None,
+                final_error_nm: -to_um * 1e3,
+                overshoot_nm: 0.0,
+                slide_back_nm: None,
+                max_following_error_um: 0.0,
+                drive_frequency_hz: f64::from(sil.controller.coarse_frequency_hz()),
+                fault: Some(FaultReport { code, text }),
+                trace: Vec::new(),
+            });
+        }
+    };
     let to_nm = (to_um * 1e3).round() as i64;
     sil.set_load(ExternalLoad::opposing(load_n, if to_nm >= 0 { 1 } else { -1 }));
     let distance_m = to_um.abs() * 1e-6;
@@ -189,6 +241,9 @@ pub fn single_move(p: &Params, spec: MoveSpec) -> anyhow::Result<MoveResult> {
 #[derive(Debug, Clone, Serialize)]
 pub struct DemoRow {
     pub step: &'static str,
+    /// Where the step lies in the demo's trace (s); equal for rows with no motion traced.
+    #[serde(skip)]
+    pub trace_span_s: (f64, f64),
     pub target_um: f64,
     pub result: String,
     pub settle_time_s: Option<f64>,
@@ -215,9 +270,11 @@ pub fn demo(p: &Params, mut progress: impl FnMut(&str)) -> anyhow::Result<(Vec<D
             for t in &r.trace {
                 trace.push(TracePoint { time_s: t.time_s + offset_s, ..*t });
             }
+            let start_s = offset_s;
             offset_s += r.trace.last().map_or(0.0, |t| t.time_s);
             rows.push(DemoRow {
                 step: label,
+                trace_span_s: (start_s, offset_s),
                 target_um: r.to_um,
                 result: outcome,
                 settle_time_s: r.settle_time_s,
@@ -247,6 +304,7 @@ pub fn demo(p: &Params, mut progress: impl FnMut(&str)) -> anyhow::Result<(Vec<D
     let drift_nm = (sil.plant.slider_position_m() - before) * 1e9;
     rows.push(DemoRow {
         step: "preload 16 → 12 N while holding",
+        trace_span_s: (offset_s, offset_s),
         target_um: sil.controller.target_nm() as f64 * 1e-3,
         result: match sil.controller.state() {
             State::Holding => {
@@ -266,6 +324,7 @@ pub fn demo(p: &Params, mut progress: impl FnMut(&str)) -> anyhow::Result<(Vec<D
     let refused = sil.controller.set_servo(true).err().or_else(|| sil.controller.move_to(0).err());
     rows.push(DemoRow {
         step: "preload 2 N: servo on + move refused",
+        trace_span_s: (offset_s, offset_s),
         target_um: 0.0,
         result: match refused {
             Some(e) => format!("refused: {}", command_error_text(e)),

@@ -390,7 +390,7 @@ pub fn run(p: &Params, args: &PilOptions, elf: &Path) -> Result<PilResult> {
                     Some(State::Fault(code)) => code.text(),
                     _ => "unknown fault",
                 };
-                result.fault = Some(FaultReport { code: reply.state & 0x7f, text });
+                result.fault = Some(FaultReport { code: reply.state & 0x7f, text: text.to_string() });
             }
             // A few periods more to see the outputs settle into the safe state.
             if result.ticks - *n >= 3 {
