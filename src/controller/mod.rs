@@ -19,6 +19,7 @@ mod commands;
 mod config;
 mod fine;
 mod frequency;
+mod frequency_choice;
 mod mass;
 pub mod model_cache;
 mod open_loop;

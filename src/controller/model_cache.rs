@@ -25,7 +25,7 @@
 //! takes it if it still answers the controller's configuration. Until the first table is in, the
 //! profile has no speed to move at (as without a preload reading).
 
-pub use super::frequency::{FrequencyChoice, FREQ_CANDIDATES};
+pub use super::frequency_choice::{FrequencyChoice, FREQ_CANDIDATES};
 use super::{Controller, ControllerConfig};
 use crate::fastmath::{acos_f32, clamp_f32, fx_from_f32};
 use crate::inertia::Orbits;
