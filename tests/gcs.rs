@@ -14,6 +14,10 @@ const PRELOAD_WORD: u16 = 1310;
 struct TestBoard {
     stored: Option<piezo_drive::controller::ControllerConfig>,
     fail_store: bool,
+    /// A store queued and not yet written (the board's flash task has it).
+    store_pending: bool,
+    /// A store that failed after `WPA` was acknowledged, not yet reported.
+    store_failed: bool,
     recorder: Recorder,
 }
 
@@ -24,6 +28,12 @@ impl Board for TestBoard {
         }
         self.stored = Some(*cfg);
         true
+    }
+    fn store_pending(&self) -> bool {
+        self.store_pending
+    }
+    fn take_store_failure(&mut self) -> bool {
+        std::mem::take(&mut self.store_failed)
     }
     fn serial_number(&self) -> u32 {
         42
@@ -1201,4 +1211,32 @@ fn trigger_2_starts_on_the_next_command_whatever_it_is() {
         (b"DRL? 1\n", b"1=0\n"),
         (b"DRL? 1\n", b"1=1\n"),
     ]);
+}
+
+/// Issue 30 item 1: `WPA` only queues the settings (the board encodes and writes them outside the
+/// controller's lock). While the store is pending, servo and motion commands and another `WPA`
+/// wait (1005, controller busy) and queries answer; a store that fails after the acknowledgement
+/// reaches the host through `ERR?` (4001), once.
+#[test]
+fn a_pending_store_holds_off_servo_and_motion_and_a_failed_one_reaches_err() {
+    let mut rig = Rig::new();
+    rig.board.store_pending = true;
+    rig.transcript(&[
+        (b"SVO 1 1\n", b""),
+        (b"ERR?\n", b"1005\n"),
+        (b"SVO?\n", b"1=0\n"),
+        (b"FRF 1\n", b""),
+        (b"ERR?\n", b"1005\n"),
+        (b"MOV 1 0.5\n", b""),
+        (b"ERR?\n", b"1005\n"),
+        (b"WPA\n", b""),
+        (b"ERR?\n", b"1005\n"),
+        (b"POS?\n", b"1=0.000000\n"),
+        (b"ERR?\n", b"0\n"),
+    ]);
+    rig.board.store_pending = false;
+    rig.board.store_failed = true;
+    rig.transcript(&[(b"SVO?\n", b"1=0\n"), (b"ERR?\n", b"4001\n"), (b"ERR?\n", b"0\n")]);
+    // Once the store is done, the servo comes on as before.
+    rig.ready();
 }

@@ -51,10 +51,23 @@ const SR_EOP: u32 = 0x1;
 const ERASE_TIMEOUT: Duration = Duration::from_millis(100);
 const PARK_TIMEOUT: Duration = Duration::from_millis(20);
 
-static REQUEST: Signal<CriticalSectionRawMutex, [u8; RECORD_LEN]> = Signal::new();
+/// The settings to store: a copy taken under the controller's lock; encoded (range check, CRC)
+/// by the flash task, outside it.
+static REQUEST: Signal<CriticalSectionRawMutex, ControllerConfig> = Signal::new();
 
-/// Last store: 0 none yet, 1 queued, 2 written and verified, 3 failed, 4 flash unavailable.
+/// Last store: 0 none yet, 1 queued or being written, 2 written and verified, 3 failed and not
+/// yet reported, 4 flash unavailable, 5 failed and reported (through `ERR?`).
 pub static STORE_STATE: AtomicU8 = AtomicU8::new(0);
+
+/// Whether a store is queued or being written.
+pub fn store_pending() -> bool {
+    STORE_STATE.load(Ordering::Relaxed) == 1
+}
+
+/// A store that failed and was not reported yet; reports it (once).
+pub fn take_store_failure() -> bool {
+    STORE_STATE.compare_exchange(3, 5, Ordering::Relaxed, Ordering::Relaxed).is_ok()
+}
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum FlashError {
@@ -66,6 +79,8 @@ pub enum FlashError {
     /// The controller is not idle.
     NotIdle,
     Verify,
+    /// A setting outside its range (the record would not load back).
+    OutOfRange,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -254,14 +269,15 @@ pub fn load(
     }
 }
 
-/// Queues `cfg` for storing; false when it is out of range or there is no usable flash.
-/// Cheap: called from the protocol with the controller locked.
+/// Queues `cfg` for storing; false when there is no usable flash. A copy and a signal: called
+/// from the protocol with the controller locked, so the range check, encoding and CRC (about
+/// 23,000 instructions, more than a control period) are left to the flash task.
 pub fn request_store(cfg: &ControllerConfig) -> bool {
-    if STORE_STATE.load(Ordering::Relaxed) == 4 || storage::validate(cfg).is_err() {
+    if STORE_STATE.load(Ordering::Relaxed) == 4 {
         return false;
     }
     STORE_STATE.store(1, Ordering::Relaxed);
-    REQUEST.signal(storage::encode(cfg));
+    REQUEST.signal(*cfg);
     true
 }
 
@@ -316,8 +332,11 @@ async fn store(
 #[embassy_executor::task]
 pub async fn flash_task(mut flash: ParamFlash, defaults: ControllerConfig) {
     loop {
-        let record = REQUEST.wait().await;
-        let result = store(&mut flash, &record, &defaults).await;
+        let cfg = REQUEST.wait().await;
+        let result = match storage::validate(&cfg) {
+            Ok(()) => store(&mut flash, &storage::encode(&cfg), &defaults).await,
+            Err(_) => Err(FlashError::OutOfRange),
+        };
         PARK_REQUEST.store(false, Ordering::SeqCst);
         match result {
             Ok(()) => {

@@ -28,6 +28,12 @@ impl Board for FwBoard {
     fn store_parameters(&mut self, cfg: &ControllerConfig) -> bool {
         params_flash::request_store(cfg)
     }
+    fn store_pending(&self) -> bool {
+        params_flash::store_pending()
+    }
+    fn take_store_failure(&mut self) -> bool {
+        params_flash::take_store_failure()
+    }
     fn serial_number(&self) -> u32 {
         // The 96-bit unique device ID folded to 32 bits.
         piezo_drive::storage::crc32(embassy_stm32::uid::uid())

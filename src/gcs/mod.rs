@@ -35,8 +35,21 @@ pub struct LoopStats {
 
 /// What the protocol needs from the board besides the controller.
 pub trait Board {
-    /// `WPA`: store the parameters in non-volatile memory; false when it failed.
+    /// `WPA`: queue the parameters for non-volatile memory; false when they cannot be (no
+    /// usable flash). Called with the controller locked on the board, so it only takes a copy:
+    /// encoding, CRC and the write happen elsewhere, and their outcome comes back through
+    /// [`Board::take_store_failure`].
     fn store_parameters(&mut self, cfg: &ControllerConfig) -> bool;
+    /// Whether a store is queued or being written: servo and motion commands wait for it
+    /// ([`error::CONTROLLER_BUSY`]), as does another `WPA`.
+    fn store_pending(&self) -> bool {
+        false
+    }
+    /// A store that failed since the last call, reported once (the next command's `ERR?` reads
+    /// [`error::FLASH_PROGRAM_FAILED`]).
+    fn take_store_failure(&mut self) -> bool {
+        false
+    }
     /// Serial number for `*IDN?`.
     fn serial_number(&self) -> u32;
     /// Control-loop timing for a diagnostics query (our extension).
@@ -223,6 +236,10 @@ pub static COMMANDS: &[Command] = &[
         xtm_query,
     ),
 ];
+
+/// The commands that wait for a pending parameter store ([`Board::store_pending`]): everything
+/// that switches the servo on or starts motion, and another store.
+const WAIT_FOR_STORE: [&str; 6] = ["SVO", "MOV", "MVR", "FRF", "XOS", "WPA"];
 
 /// `*IDN?` fields: maker, model, (serial), version (three dot-separated parts at most).
 pub const IDN_MAKER: &str = "(c)2026 piezo-drive project";
@@ -540,6 +557,9 @@ impl Gcs {
             self.seen_reference_failures = ctl.reference_failure_count();
             self.error = error::REFERENCING_FAILED;
         }
+        if board.take_store_failure() {
+            self.error = error::FLASH_PROGRAM_FAILED;
+        }
         self.drr = None;
         let start = reply.len();
         let mut out = Out { buf: reply, lines: 0, ok: true };
@@ -598,11 +618,15 @@ impl Gcs {
         let Some((cmd, args)) = tokens.split_first() else {
             return Ok(()); // empty line
         };
-        let run = COMMANDS
+        let command = COMMANDS
             .iter()
             .find(|c| c.name.as_bytes().eq_ignore_ascii_case(cmd))
-            .and_then(|c| c.run)
             .ok_or(error::UNKNOWN_COMMAND)?;
+        let run = command.run.ok_or(error::UNKNOWN_COMMAND)?;
+        // A parameter store parks the drive and writes the flash: nothing may start meanwhile.
+        if board.store_pending() && WAIT_FOR_STORE.contains(&command.name) {
+            return Err(error::CONTROLLER_BUSY);
+        }
         run(self, Call { args, ctl, board, out })
     }
 
