@@ -1240,3 +1240,19 @@ fn a_pending_store_holds_off_servo_and_motion_and_a_failed_one_reaches_err() {
     // Once the store is done, the servo comes on as before.
     rig.ready();
 }
+
+/// Issue 30 item 9: a limit switch that stops a move latches error 7 (position out of limits)
+/// for the next `ERR?`, once; a move away from the switch is accepted.
+#[test]
+fn a_limit_switch_stopping_a_move_latches_error_7() {
+    let mut rig = Rig::new();
+    rig.ready();
+    rig.transcript(&[(b"MOV 1 0.5\n", b""), (b"ERR?\n", b"0\n")]);
+    rig.steps(5, Inputs::default());
+    rig.steps(1, Inputs { positive_limit: true, ..Default::default() });
+    rig.transcript(&[(b"ERR?\n", b"7\n"), (b"ERR?\n", b"0\n")]);
+    rig.steps(2000, Inputs { positive_limit: true, ..Default::default() });
+    rig.transcript(&[(b"MOV 1 -0.1\n", b""), (b"ERR?\n", b"0\n")]);
+    rig.steps(5, Inputs { positive_limit: true, ..Default::default() });
+    rig.transcript(&[(b"ERR?\n", b"0\n")]);
+}

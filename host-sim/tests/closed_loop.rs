@@ -717,3 +717,57 @@ fn small_steps_settle_within_20_ms_on_every_carriage_at_every_preload() {
         }
     }
 }
+
+/// Issue 30 item 9: a limit switch while moving. A 1 mm move toward a switch at 0.3 mm stops
+/// there, past it by no more than the braking distance at full speed (v²/2a: 2.9 mm/s at the
+/// 1000 mm/s² the profile brakes at most, 4.2 µm; bound 10 µm), holds without a fault and counts
+/// one limit stop (the protocol latches error 7); a move further into the switch goes nowhere
+/// (under 1 µm) and counts another; a move away settles where it was sent.
+#[test]
+fn a_limit_switch_stops_a_move_into_it_and_lets_the_slider_move_away() {
+    let p = Params::prototype();
+    let mut sil = ready_board(&p, controller_config(&p), 16.0).unwrap();
+    let switch_m = 0.3e-3;
+    sil.limits_m = Some((-1.0, switch_m));
+    let r = run_move(&mut sil, 1_000_000, 3.0, 0.05);
+    let x = sil.plant.slider_position_m();
+    assert!(r.fault.is_none(), "{r:?}");
+    assert!(x >= switch_m && x < switch_m + 10e-6, "stopped at {:.2} µm", x * 1e6);
+    assert_eq!(sil.controller.state(), State::Holding);
+    assert_eq!(sil.controller.limit_stop_count(), 1);
+
+    let r = run_move(&mut sil, 800_000, 1.0, 0.05);
+    let x2 = sil.plant.slider_position_m();
+    assert!(r.fault.is_none() && (x2 - x).abs() < 1e-6, "moved {:.3} µm into the switch", (x2 - x) * 1e6);
+    assert_eq!(sil.controller.limit_stop_count(), 2);
+
+    let r = run_move(&mut sil, 100_000, 3.0, 0.05);
+    assert!(r.settle_time_s.is_some() && r.final_error_nm.abs() <= 50.0, "{r:?}");
+    assert_eq!(sil.controller.limit_stop_count(), 2);
+}
+
+/// Issue 30 item 9: open-loop stepping (servo off, `XOS`) toward a switch ends at the switch and
+/// counts a limit stop; stepping away from it runs.
+#[test]
+fn open_loop_stepping_ends_at_a_limit_switch_and_runs_away_from_it() {
+    let p = Params::prototype();
+    let mut sil = Sil::new(&p, controller_config(&p), 16.0, 7).unwrap();
+    sil.run_until(0.05, |_| false);
+    let switch_m = 20e-6;
+    sil.limits_m = Some((-1.0, switch_m));
+    // 2000 cycles at 2.2 kHz and full drive would carry the slider about 2.6 mm.
+    sil.controller.open_loop_step(2000, 100.0, 2200.0).unwrap();
+    sil.run_until(1.0, |s| s.controller.state() == State::Idle);
+    let x = sil.plant.slider_position_m();
+    assert_eq!(sil.controller.state(), State::Idle);
+    assert!(x >= switch_m && x < switch_m + 5e-6, "ended at {:.2} µm", x * 1e6);
+    assert_eq!(sil.controller.limit_stop_count(), 1);
+    sil.controller.open_loop_step(-200, 100.0, 2200.0).unwrap();
+    sil.run_until(1.0, |s| s.controller.state() == State::Idle);
+    assert!(
+        sil.plant.slider_position_m() < x - 100e-6,
+        "did not step away: {:e}",
+        sil.plant.slider_position_m()
+    );
+    assert_eq!(sil.controller.limit_stop_count(), 1);
+}

@@ -97,6 +97,7 @@ impl Controller {
         self.pinned_frequency_hz = None;
         self.max_following_error_nm = 0.0;
         self.on_target_s = 0.0;
+        self.limit_stopped = false;
         self.activity = Activity::Moving;
         let to_target = (target_nm - self.position_nm()) as f32;
         if !matches!(self.mode, Mode::Coarse) && to_target.abs() > self.cfg.fine_window_nm {

@@ -238,6 +238,10 @@ pub struct Controller {
     /// The move's speed-up while it is being timed.
     speedup: Option<SpeedUp>,
     reference_failures: u32,
+    /// Moves and open-loop runs a limit switch stopped (wraps), and whether the move in progress
+    /// has been stopped by one already (counted once).
+    limit_stops: u32,
+    limit_stopped: bool,
     faults: u32,
     /// Control periods since start (wraps): the speed-up limit (a model evaluation) is
     /// refreshed on odd periods only; the profile's acceleration changes little in 100 µs.
@@ -289,6 +293,8 @@ impl Controller {
             mass_preload_n: 0.0,
             speedup: None,
             reference_failures: 0,
+            limit_stops: 0,
+            limit_stopped: false,
             faults: 0,
             tick: 0,
             speedup_nm_s2: core::cell::Cell::new(0.0),
@@ -383,6 +389,20 @@ impl Controller {
         self.reference_failures
     }
 
+    /// Closed-loop moves and open-loop runs that a limit switch stopped (wraps): a change tells
+    /// the protocol one did.
+    pub fn limit_stop_count(&self) -> u32 {
+        self.limit_stops
+    }
+
+    /// Counts a limit switch's stop (once per move).
+    fn note_limit_stop(&mut self) {
+        if !self.limit_stopped {
+            self.limit_stopped = true;
+            self.limit_stops = self.limit_stops.wrapping_add(1);
+        }
+    }
+
     /// Motion in progress: a closed-loop move, referencing or open-loop stepping.
     pub fn in_motion(&self) -> bool {
         match self.state() {
@@ -434,6 +454,7 @@ impl Controller {
             if (inputs.negative_limit && (v < 0.0 || toward < 0))
                 || (inputs.positive_limit && (v > 0.0 || toward > 0))
             {
+                self.note_limit_stop();
                 self.stop();
             }
         }

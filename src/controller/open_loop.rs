@@ -19,6 +19,10 @@ impl Controller {
         self.profile.reset(here);
         let blocked =
             (run.direction < 0 && inputs.negative_limit) || (run.direction > 0 && inputs.positive_limit);
+        if blocked {
+            self.limit_stopped = false;
+            self.note_limit_stop();
+        }
         if run.periods == 0 || blocked {
             return self.end_open_loop_motion();
         }

@@ -321,6 +321,7 @@ pub struct Gcs {
     reference_mode: bool,
     seen_faults: u32,
     seen_reference_failures: u32,
+    seen_limit_stops: u32,
     /// The rest of a `DRR?` reply, while one is being sent.
     drr: Option<datarec::DrrCursor>,
 }
@@ -433,6 +434,7 @@ impl Gcs {
             reference_mode: true,
             seen_faults: 0,
             seen_reference_failures: 0,
+            seen_limit_stops: 0,
             drr: None,
         }
     }
@@ -556,6 +558,12 @@ impl Gcs {
         if ctl.reference_failure_count() != self.seen_reference_failures {
             self.seen_reference_failures = ctl.reference_failure_count();
             self.error = error::REFERENCING_FAILED;
+        }
+        if ctl.limit_stop_count() != self.seen_limit_stops {
+            // A limit switch stopped a move or an open-loop run: the slider is at the end of
+            // its travel on that side.
+            self.seen_limit_stops = ctl.limit_stop_count();
+            self.error = error::POS_OUT_OF_LIMITS;
         }
         if board.take_store_failure() {
             self.error = error::FLASH_PROGRAM_FAILED;
