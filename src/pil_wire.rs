@@ -79,22 +79,13 @@ pub fn state_code(s: State) -> u8 {
 
 /// The state a [`state_code`] stands for; `None` for a byte no state encodes to.
 pub fn decode_state(code: u8) -> Option<State> {
-    const FAULTS: [FaultCode; 7] = [
-        FaultCode::FollowingError,
-        FaultCode::Stall,
-        FaultCode::PreloadOutOfWindow,
-        FaultCode::PreloadSensor,
-        FaultCode::EncoderJump,
-        FaultCode::Overrun,
-        FaultCode::EncoderLoss,
-    ];
     match code {
         0 => Some(State::Idle),
         1 => Some(State::Moving),
         2 => Some(State::Holding),
         3 => Some(State::Referencing),
         4 => Some(State::OpenLoop),
-        c if c & 0x80 != 0 => FAULTS.into_iter().find(|f| *f as u8 == c & 0x7f).map(State::Fault),
+        c if c & 0x80 != 0 => FaultCode::ALL.into_iter().find(|f| *f as u8 == c & 0x7f).map(State::Fault),
         _ => None,
     }
 }

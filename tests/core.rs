@@ -297,17 +297,8 @@ fn pil_frames_round_trip_and_reject_unknown_commands() {
     assert_eq!(decode_reply(&encode_reply(&r)), r);
     assert_eq!(state_name(r.state), "fault");
     // Every state the controller can be in comes back from its byte; other bytes are refused.
-    let faults = [
-        FaultCode::FollowingError,
-        FaultCode::Stall,
-        FaultCode::PreloadOutOfWindow,
-        FaultCode::PreloadSensor,
-        FaultCode::EncoderJump,
-        FaultCode::Overrun,
-        FaultCode::EncoderLoss,
-    ];
     let states = [State::Idle, State::Moving, State::Holding, State::Referencing, State::OpenLoop];
-    for s in states.into_iter().chain(faults.into_iter().map(State::Fault)) {
+    for s in states.into_iter().chain(FaultCode::ALL.into_iter().map(State::Fault)) {
         assert_eq!(decode_state(state_code(s)), Some(s));
     }
     assert_eq!(decode_state(5), None);
@@ -333,4 +324,14 @@ fn acos_f32_within_its_stated_error() {
     assert!((acos_f32(f32::NAN) - std::f32::consts::FRAC_PI_2).abs() < 1e-4);
     assert_eq!(acos_f32(3.0), acos_f32(1.0));
     assert_eq!(acos_f32(-3.0), acos_f32(-1.0));
+}
+
+#[test]
+fn fault_code_all_lists_every_code_once_in_order() {
+    // The codes are 1, 2, … with no gap: ALL must hold each, in order (a fault added to the enum
+    // but not to ALL leaves a gap at the end or in the middle).
+    for (i, f) in piezo_drive::controller::FaultCode::ALL.iter().enumerate() {
+        assert_eq!(*f as u8, i as u8 + 1, "{f:?}");
+        assert!(!f.text().is_empty());
+    }
 }

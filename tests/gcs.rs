@@ -2,49 +2,15 @@
 //! GCS rules (framing, error latching, one-bad-part-executes-nothing) and the PIPython facts in
 //! shared/gcs-notes.md — written by hand, not captured from the implementation.
 
+mod common;
+
+use common::TestBoard;
 use piezo_drive::controller::{Controller, Inputs, State};
 use piezo_drive::defaults;
-use piezo_drive::gcs::{params::PARAMS, Board, Gcs, LoopStats, Pending, Reply, LINE_CAPACITY};
-use piezo_drive::recorder::Recorder;
+use piezo_drive::gcs::{params::PARAMS, Gcs, Pending, Reply, LINE_CAPACITY};
 
 /// 16 N on the default 12-bit, 50 N force cell: word 1310 reads 1310·50/4095 = 15.995 N.
 const PRELOAD_WORD: u16 = 1310;
-
-#[derive(Default)]
-struct TestBoard {
-    stored: Option<piezo_drive::controller::ControllerConfig>,
-    fail_store: bool,
-    /// A store queued and not yet written (the board's flash task has it).
-    store_pending: bool,
-    /// A store that failed after `WPA` was acknowledged, not yet reported.
-    store_failed: bool,
-    recorder: Recorder,
-}
-
-impl Board for TestBoard {
-    fn store_parameters(&mut self, cfg: &piezo_drive::controller::ControllerConfig) -> bool {
-        if self.fail_store {
-            return false;
-        }
-        self.stored = Some(*cfg);
-        true
-    }
-    fn store_pending(&self) -> bool {
-        self.store_pending
-    }
-    fn take_store_failure(&mut self) -> bool {
-        std::mem::take(&mut self.store_failed)
-    }
-    fn serial_number(&self) -> u32 {
-        42
-    }
-    fn loop_stats(&self) -> LoopStats {
-        LoopStats { step_cycles_last: 12, step_cycles_max: 34, overruns: 0, core_clock_hz: 170_000_000 }
-    }
-    fn recorder(&self) -> Option<&Recorder> {
-        Some(&self.recorder)
-    }
-}
 
 struct Rig {
     gcs: Gcs,

@@ -7,28 +7,11 @@ use piezo_drive::defaults;
 use piezo_drive::gcs::num::{
     parse_decimal, parse_int, write_f32, write_fixed, write_general, write_scaled, Decimal,
 };
-use piezo_drive::gcs::{Board, Gcs, LoopStats, Pending, Reply, LINE_CAPACITY};
-use proptest::prelude::*;
+mod common;
 
-/// A board with a data recorder and nothing else.
-#[derive(Default)]
-struct NullBoard {
-    recorder: piezo_drive::recorder::Recorder,
-}
-impl Board for NullBoard {
-    fn store_parameters(&mut self, _: &piezo_drive::controller::ControllerConfig) -> bool {
-        true
-    }
-    fn serial_number(&self) -> u32 {
-        1
-    }
-    fn loop_stats(&self) -> LoopStats {
-        LoopStats::default()
-    }
-    fn recorder(&self) -> Option<&piezo_drive::recorder::Recorder> {
-        Some(&self.recorder)
-    }
-}
+use common::TestBoard;
+use piezo_drive::gcs::{Gcs, Pending, Reply, LINE_CAPACITY};
+use proptest::prelude::*;
 
 fn fixed(v: f64, d: u32) -> String {
     let mut b: heapless::Vec<u8, 64> = heapless::Vec::new();
@@ -168,7 +151,7 @@ proptest! {
         // MOV with two pairs: the second counts only if the first is within TMN?..TMX? too.
         let mut gcs = Gcs::new();
         let mut ctl = Controller::new(defaults::controller_config()).unwrap();
-        let mut board = NullBoard::default();
+        let mut board = TestBoard::default();
         let inputs = Inputs { preload_word: 1310, ..Default::default() };
         ctl.step(&inputs);
         let mut send = |gcs: &mut Gcs, ctl: &mut Controller, text: &str| {
@@ -200,7 +183,7 @@ proptest! {
         let mut gcs = Gcs::new();
         let mut ctl = Controller::new(defaults::controller_config()).unwrap();
         ctl.step(&Inputs { preload_word: 1310, ..Default::default() });
-        let mut board = NullBoard::default();
+        let mut board = TestBoard::default();
         // Arbitrary chunks, as a UART or a socket delivers them, with control steps in between.
         let mut rest: &[u8] = &bytes;
         let mut k = 0;
@@ -254,7 +237,7 @@ proptest! {
     ) {
         let mut gcs = Gcs::new();
         let mut ctl = Controller::new(defaults::controller_config()).unwrap();
-        let mut board = NullBoard::default();
+        let mut board = TestBoard::default();
         for (cmd, args) in cmds {
             let line = format!("{cmd} {}\n", args.join(" "));
             for &b in line.as_bytes() {

@@ -1,9 +1,12 @@
 //! Issue 16: the board-independent safety logic, against hand-calculated expectations.
 
+mod common;
+
+use common::TestBoard;
 use piezo_drive::controller::{Controller, FaultCode, Inputs, State};
 use piezo_drive::defaults;
 use piezo_drive::fastmath::{clamp_f32, clamp_i32, clamp_sym_f32};
-use piezo_drive::gcs::{error, Board, Gcs, LoopStats, Pending, Reply, COMMANDS};
+use piezo_drive::gcs::{error, Gcs, Pending, Reply, COMMANDS};
 use piezo_drive::safety::fault_record::{self, FaultKind, FaultRecord, RECORD_WORDS};
 use piezo_drive::safety::flash_ecc::{ecc_in_page, ecc_in_param_page};
 use piezo_drive::safety::probe::{probe_says_floating, FloatDetector};
@@ -146,19 +149,6 @@ fn bucket_trip_now_latches() {
 
 // ---------------------------------------------------------------- item 1: the fault and its error
 
-struct NoBoard;
-impl Board for NoBoard {
-    fn store_parameters(&mut self, _: &piezo_drive::controller::ControllerConfig) -> bool {
-        true
-    }
-    fn serial_number(&self) -> u32 {
-        1
-    }
-    fn loop_stats(&self) -> LoopStats {
-        LoopStats::default()
-    }
-}
-
 const PRELOAD_WORD: u16 = 1310; // 16 N on the default 0–50 N cell
 
 fn send(gcs: &mut Gcs, ctl: &mut Controller, bytes: &[u8]) -> Vec<u8> {
@@ -166,7 +156,7 @@ fn send(gcs: &mut Gcs, ctl: &mut Controller, bytes: &[u8]) -> Vec<u8> {
     for &b in bytes {
         if let Some(p) = gcs.push_byte(b) {
             let mut reply = Reply::new();
-            gcs.execute(&p, ctl, &mut NoBoard, &mut reply);
+            gcs.execute(&p, ctl, &mut TestBoard::default(), &mut reply);
             all.extend_from_slice(&reply);
         }
     }
@@ -622,7 +612,7 @@ fn settings_commands_on_a_copy_then_set_config_equal_running_them_directly() {
         let mut direct = idle_controller();
         let mut gcs_a = Gcs::new();
         send(&mut gcs_a, &mut direct, b"SVO 1 1\n");
-        let mut board = NoBoard;
+        let mut board = TestBoard::default();
         let mut reply_a = Reply::new();
         gcs_a.execute(&p, &mut direct, &mut board, &mut reply_a);
         // On a copy, then the settings only.

@@ -52,6 +52,17 @@ pub enum FaultCode {
 }
 
 impl FaultCode {
+    /// Every fault, in code order: wire formats decode from it, tests walk it.
+    pub const ALL: [FaultCode; 7] = [
+        FaultCode::FollowingError,
+        FaultCode::Stall,
+        FaultCode::PreloadOutOfWindow,
+        FaultCode::PreloadSensor,
+        FaultCode::EncoderJump,
+        FaultCode::Overrun,
+        FaultCode::EncoderLoss,
+    ];
+
     pub fn text(self) -> &'static str {
         match self {
             FaultCode::FollowingError => "following error above limit",
