@@ -44,3 +44,21 @@ pub fn falling_root(f: impl Fn(f64) -> f64, lo: f64, hi: f64, rel_tol: f64) -> f
     }
     (a * fb - b * fa) / (fb - fa)
 }
+
+/// The load at which a motor stops moving forward: bisection on `forward(load)` over
+/// `[0, top_n]` to a bracket of `tol_n`; 0 when it does not move forward at no load.
+pub fn stall_load_n(forward: impl Fn(f64) -> bool, top_n: f64, tol_n: f64) -> f64 {
+    if !forward(0.0) {
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (0.0, top_n);
+    while hi - lo > tol_n {
+        let mid = 0.5 * (lo + hi);
+        if forward(mid) {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}

@@ -38,7 +38,7 @@
 use crate::motor::contact_friction::{FrictionLaw, Layer, StepInput};
 use crate::motor::params::{FrictionModel, Params};
 use crate::motor::plant::{friction_law, state_matrix};
-use crate::motor::roots::falling_root;
+use crate::motor::roots::{falling_root, stall_load_n};
 use crate::motor::steady::{amplitudes, OperatingPoint};
 use nalgebra::SMatrix;
 use std::f64::consts::{PI, TAU};
@@ -284,18 +284,6 @@ impl ContactModel {
     pub fn stall_force_n(&self) -> f64 {
         let forward = |load: f64| self.speed_at_load_m_s(load).is_some_and(|v| v > 0.0);
         let top = self.mu_stick * self.profile.mean_contact_n().max(1e-9);
-        if !forward(0.0) {
-            return 0.0;
-        }
-        let (mut lo, mut hi) = (0.0, top);
-        while hi - lo > 1e-4 * top {
-            let mid = 0.5 * (lo + hi);
-            if forward(mid) {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        0.5 * (lo + hi)
+        stall_load_n(forward, top, 1e-4 * top)
     }
 }

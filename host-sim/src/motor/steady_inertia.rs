@@ -12,7 +12,7 @@
 //! mean speed tends to the constant-speed model's as `M → ∞` (tested).
 
 use crate::motor::params::Params;
-use crate::motor::roots::falling_root;
+use crate::motor::roots::{falling_root, stall_load_n};
 use crate::motor::steady::{OperatingPoint, ThrustModel};
 use std::f64::consts::{PI, TAU};
 
@@ -128,18 +128,6 @@ impl InertialModel {
     pub fn stall_force_n(&self) -> f64 {
         let guess = self.base.stall_force_n().max(1e-9);
         let forward = |load: f64| self.speed_at_load_m_s(load).is_some_and(|v| v > 0.0);
-        if !forward(0.0) {
-            return 0.0;
-        }
-        let (mut lo, mut hi) = (0.0, 2.0 * guess);
-        while hi - lo > 1e-4 * guess {
-            let mid = 0.5 * (lo + hi);
-            if forward(mid) {
-                lo = mid;
-            } else {
-                hi = mid;
-            }
-        }
-        0.5 * (lo + hi)
+        stall_load_n(forward, 2.0 * guess, 1e-4 * guess)
     }
 }
