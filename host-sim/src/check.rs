@@ -97,6 +97,18 @@ pub fn output_file(flag: &str, path: &Path) -> Result<()> {
             bail!("{flag} {}: file is read-only", path.display());
         }
     }
+    // Whether it can be written at all (directory permissions, a read-only file system): open it
+    // the way the writer will, without truncating an existing file, and remove it again if this
+    // probe created it. Before any simulation, so a long run does not end in a late I/O error.
+    let existed = path.exists();
+    match std::fs::OpenOptions::new().append(true).create(true).open(path) {
+        Ok(_) => {
+            if !existed {
+                let _ = std::fs::remove_file(path);
+            }
+        }
+        Err(e) => bail!("{flag} {}: cannot write there: {e}", path.display()),
+    }
     Ok(())
 }
 

@@ -192,6 +192,8 @@ fn output_paths_are_checked_before_any_work() {
         (vec!["trace", "--masses-kg", "1,2,3,4,5", "--plot", missing], "--plot", missing),
         (vec!["move", "--to-um", "20000", "--plot", missing], "--plot", missing),
         (vec!["demo", "--plot", missing], "--plot", missing),
+        // A directory that exists but cannot be written, even by root (/proc).
+        (vec!["move", "--to-um", "20000", "--plot", "/proc/x.svg"], "--plot", "/proc/x.svg"),
         (vec!["measure", "--out", "/no/such/dir/m.csv"], "--out", "/no/such/dir/m.csv"),
         (
             vec![
