@@ -7,7 +7,7 @@
 //!   pin drops at once and the controller latches its `Overrun` fault;
 //! - on panic: our `#[panic_handler]` writes GPIOA and the drive registers through the PAC before
 //!   anything else, records the fault, logs it over defmt and waits for a watchdog reset;
-//! - on HardFault (registers dumped into the fault record and the log), NMI (a flash double-ECC
+//! - on HardFault (registers dumped into the fault record, logged at the next boot), NMI (a flash double-ECC
 //!   error on the parameter page while it is read at boot is survivable: see `params_flash.rs`)
 //!   or an unexpected interrupt: the same register writes, then a wait for the watchdogs;
 //! - on the window watchdog's early warning (the tick stopped feeding it for ~1 ms): the same,
@@ -177,11 +177,15 @@ fn record_ptr() -> *mut u32 {
 /// Stores a fault record (any context; the last writer wins).
 pub fn record_fault(kind: FaultKind, detail: [u32; DETAIL_WORDS]) {
     let words = fault_record::encode(&FaultRecord { kind, boots_seen: 0, tick: ticks(), detail });
-    for (i, w) in words.iter().enumerate() {
-        // SAFETY: i < RECORD_WORDS; plain RAM words, written volatile so a reset right after
-        // finds them.
-        unsafe { record_ptr().add(i).write_volatile(*w) };
-    }
+    // With interrupts masked, so an interrupt that faults in turn cannot interleave its record
+    // with this one (HardFault and NMI cannot be masked: they are the last word, and win).
+    cortex_m::interrupt::free(|_| {
+        for (i, w) in words.iter().enumerate() {
+            // SAFETY: i < RECORD_WORDS; plain RAM words, written volatile so a reset right after
+            // finds them.
+            unsafe { record_ptr().add(i).write_volatile(*w) };
+        }
+    });
 }
 
 /// The record left before the last reset, if any (random RAM after a power-up does not decode);
@@ -219,17 +223,8 @@ unsafe fn HardFault(frame: &cortex_m_rt::ExceptionFrame) -> ! {
         frame as *const _ as u32,
     ];
     record_fault(FaultKind::HardFault, detail);
-    defmt::error!(
-        "HardFault: pc {=u32:08x} lr {=u32:08x} xpsr {=u32:08x} cfsr {=u32:08x} hfsr {=u32:08x} mmfar {=u32:08x} bfar {=u32:08x} sp {=u32:08x}",
-        detail[0],
-        detail[1],
-        detail[2],
-        detail[3],
-        detail[4],
-        detail[5],
-        detail[6],
-        detail[7]
-    );
+    // No logging here: defmt can itself fault or panic, and the panic handler would overwrite
+    // this record. The next boot logs it (`take_last_fault`).
     loop {
         force_safe();
     }
@@ -266,10 +261,19 @@ unsafe fn DefaultHandler(irqn: i16) {
     }
 }
 
+/// Set by the first panic: a panic inside the panic handler (its logging) keeps the first record.
+static PANICKING: core::sync::atomic::AtomicBool = core::sync::atomic::AtomicBool::new(false);
+
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo) -> ! {
     cortex_m::interrupt::disable();
     force_safe();
+    if PANICKING.swap(true, core::sync::atomic::Ordering::SeqCst) {
+        loop {
+            force_safe();
+            cortex_m::asm::nop();
+        }
+    }
     let line = info.location().map_or(0, |l| l.line());
     record_fault(FaultKind::Panic, [line, 0, 0, 0, 0, 0, 0, 0]);
     defmt::error!("panic: {}", defmt::Display2Format(info));
