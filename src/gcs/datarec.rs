@@ -10,7 +10,10 @@
 //! that fit and leaves a [`DrrCursor`]; the board sends that and asks for the rest with
 //! [`Gcs::continue_reply`] until [`Gcs::reply_pending`] is false.
 
-use super::{axis, error, no_args, Board, Call, Gcs, GcsResult, Out};
+use super::args::{axis, no_args};
+use super::commands::{Call, GcsResult};
+use super::framing::Out;
+use super::{error, Board, Gcs};
 use crate::gcs::num::{parse_int, write_scaled};
 use crate::recorder::{self, Recorder, RecorderError, DEPTH, OPTIONS, TABLES, TRIGGERS};
 

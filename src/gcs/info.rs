@@ -1,0 +1,99 @@
+//! Information handlers: `*IDN?`, `CSV?`, `HLP?`, `SAI?`, `CST?` and `XLT?` (loop timing),
+//! and the identification strings they print.
+
+use super::args::no_args;
+use super::commands::{Call, GcsResult, COMMANDS};
+use super::{error, Gcs};
+
+/// `*IDN?` fields: maker, model, (serial), version (three dot-separated parts at most).
+pub const IDN_MAKER: &str = "(c)2026 piezo-drive project";
+pub const IDN_MODEL: &str = "PD-SB1";
+pub const IDN_VERSION: &str = env!("CARGO_PKG_VERSION");
+/// `CST?`: what the axis is.
+pub const STAGE_NAME: &str = "SHAKING-BEAM-PIEZO";
+
+pub(super) fn idn_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, board, out, .. } = c;
+    no_args(args)?;
+    out.line();
+    out.s(IDN_MAKER);
+    out.s(", ");
+    out.s(IDN_MODEL);
+    out.s(", ");
+    // Six digits at least, as PI prints serial numbers.
+    let serial = board.serial_number();
+    let mut p = 100_000u32;
+    while p > 1 && serial < p {
+        out.s("0");
+        p /= 10;
+    }
+    out.u(u64::from(serial));
+    out.s(", ");
+    out.s(IDN_VERSION);
+    Ok(())
+}
+
+pub(super) fn csv_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, out, .. } = c;
+    no_args(args)?;
+    out.line();
+    out.s("2.0");
+    Ok(())
+}
+
+pub(super) fn hlp_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, out, .. } = c;
+    no_args(args)?;
+    out.line();
+    out.s("The following commands are valid:");
+    for c in COMMANDS {
+        out.line();
+        out.s(c.name);
+        if !c.syntax.is_empty() {
+            out.s(" ");
+            out.s(c.syntax);
+        }
+        out.s(" ");
+        out.s(c.help);
+    }
+    out.line();
+    out.s("end of help");
+    Ok(())
+}
+
+pub(super) fn sai_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, out, .. } = c;
+    match args {
+        [] => {}
+        [all] if all.eq_ignore_ascii_case(b"ALL") => {}
+        [_] => return Err(error::PARAM_SYNTAX),
+        _ => return Err(error::WRONG_PARAM_COUNT),
+    }
+    out.line();
+    out.s("1");
+    Ok(())
+}
+
+pub(super) fn cst_query(gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, out, .. } = c;
+    gcs.axis_query(args, out, |out| out.s(STAGE_NAME))?;
+    Ok(())
+}
+
+pub(super) fn xlt_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, board, out, .. } = c;
+    no_args(args)?;
+    let s = board.loop_stats();
+    for (key, v) in [
+        ("step_cycles_last", s.step_cycles_last),
+        ("step_cycles_max", s.step_cycles_max),
+        ("overruns", s.overruns),
+        ("core_clock_hz", s.core_clock_hz),
+    ] {
+        out.line();
+        out.s(key);
+        out.s("=");
+        out.u(u64::from(v));
+    }
+    Ok(())
+}
