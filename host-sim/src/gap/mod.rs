@@ -22,14 +22,14 @@ pub mod fit;
 pub mod measure;
 pub mod measured_csv;
 pub mod report;
+mod stages;
 
 use crate::gap::measured_csv::MeasuredRow;
 use crate::motor::effects::{Axis, Condition, Effect, EFFECT_NAMES};
 use crate::motor::params::Params;
-use anyhow::{anyhow, bail, Result};
+use anyhow::Result;
 use fit::{covariance, fit as lm_fit, named_values, Data, Fit, Model, BASE_NAMES, BASE_PARAMS};
 use nalgebra::DMatrix;
-use rayon::prelude::*;
 use serde::Serialize;
 use std::path::PathBuf;
 
@@ -604,285 +604,17 @@ pub fn analyze(
     progress: ProgressFn,
 ) -> Result<GapReport> {
     let t0 = std::time::Instant::now();
-    let library = opts
-        .library
-        .iter()
-        .map(|name| name.parse::<Effect>().map_err(|e| anyhow!("effect library: {e}")))
-        .collect::<Result<Vec<Effect>>>()?;
-    let data = Data::from_rows(rows);
-    let n = data.len();
-    if n < 8 {
-        bail!("need at least 8 measured rows, got {n}");
-    }
-    if data.mean_speed() <= 0.0 {
-        bail!("the mean measured speed must be positive (the gap is relative to it)");
-    }
-    let all = all_rows(&data);
-    progress("calibrating the base model", 0, 1);
-    let base_model = Model { base: base.clone(), effects: Vec::new() };
-    let base_fit = lm_fit(&base_model, &data, &all, &base_starts(BASE_PARAMS), 100);
-    let (s0, m0) = data.noise_scale(&base_fit.resid);
-    let s0 = if m0 == 0 || !s0.is_finite() || s0 <= 0.0 {
-        // No curve with three loads: fall back to the residual scale (nothing can be detected).
-        (base_fit.ssr / (n - BASE_PARAMS) as f64).sqrt().max(1e-12)
-    } else {
-        s0
-    };
-    let pred_before = base_model.predict(&base_fit.x, &data, &all);
-    let gap_before = data.gap(&pred_before);
-    let ratio0 = ratio(&base_fit, n, BASE_PARAMS, s0);
-    let base_cal = base_calibration(&base_model, &base_fit, s0);
-    let structure_before = structure(&data, &base_fit.resid, s0);
-    let mut state = State { model: base_model, fit: base_fit, s: s0, noise_dof: m0, ratio: ratio0 };
-    let mut candidates_out: Vec<Candidate> = Vec::new();
-    let mut ambiguity = Vec::new();
-    let mut removed = Vec::new();
-    let library: Vec<Effect> = library.into_iter().filter(|e| !base.effects.is_active(*e)).collect();
-    // Levels of each condition in the data: an effect whose every signature condition has one
-    // level cannot be told from the base calibration there; left out, and said so.
-    let levels = structure(&data, &vec![0.0; data.len()], 1.0);
-    let varied = |axis: Axis| levels.iter().any(|&(a, k, _)| a == axis && k >= 2);
-    let (library, unidentifiable): (Vec<Effect>, Vec<Effect>) =
-        library.into_iter().partition(|e| e.signature().iter().any(|&a| varied(a)));
-    let not_identifiable: Vec<String> = unidentifiable.iter().map(|e| e.to_string()).collect();
-    let mut round = 0;
-    while state.model.effects.len() < opts.max_effects && state.ratio >= opts.consistent_ratio {
-        round += 1;
-        let todo: Vec<Effect> =
-            library.iter().copied().filter(|e| !state.model.effects.contains(e)).collect();
-        if todo.is_empty() {
-            break;
-        }
-        let label = format!("round {round}: candidates scored and refitted");
-        progress(&label, 0, todo.len());
-        let done = std::sync::atomic::AtomicUsize::new(0);
-        let cv_without = cv_rms(&state.model, &data, &state.fit.x, opts.folds);
-        let mut cands: Vec<Candidate> = todo
-            .par_iter()
-            .map(|&effect| {
-                let sc = score(&state, effect, &data);
-                let mut m = state.model.clone();
-                m.effects.push(effect);
-                let starts = candidate_starts(&state.fit.x, effect, &data);
-                let f = lm_fit(&m, &data, &all, &starts, 60);
-                let k = effect.fit_params().len() as f64;
-                let lr = (state.fit.ssr - f.ssr) / (state.s * state.s);
-                let cv_with = cv_rms(&m, &data, &f.x, opts.folds);
-                let pred = m.predict(&f.x, &data, &all);
-                let structure = axis_structure(
-                    &data,
-                    &f.resid,
-                    (state.s, state.noise_dof),
-                    opts.signature_alpha,
-                    effect.signature(),
-                );
-                let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-                progress(&label, d, todo.len());
-                Candidate {
-                    name: effect.to_string(),
-                    effect,
-                    round,
-                    score: sc,
-                    score_rank: 0,
-                    lr,
-                    delta_bic: lr - k * (n as f64).ln(),
-                    cv_improvement: 1.0 - cv_with / cv_without.max(1e-300),
-                    gap: data.gap(&pred),
-                    consistency: ratio(&f, n, m.n_params(), state.s),
-                    accepted: false,
-                    partial: false,
-                    structure,
-                    params: effect_named_params(&m, &f, effect, state.s),
-                    fit_x: f.x.clone(),
-                    pred,
-                }
-            })
-            .collect();
-        let mut order: Vec<usize> = (0..cands.len()).collect();
-        order.sort_by(|&a, &b| cands[b].score.total_cmp(&cands[a].score));
-        for (rank, &i) in order.iter().enumerate() {
-            cands[i].score_rank = rank + 1;
-        }
-        cands.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
-        let eligible: Vec<usize> = (0..cands.len())
-            .filter(|&i| {
-                cands[i].delta_bic >= opts.min_delta_bic && cands[i].cv_improvement >= opts.min_cv_improvement
-            })
-            .collect();
-        let Some(&best) = eligible.first() else {
-            candidates_out.extend(cands);
-            break;
-        };
-        let group: Vec<usize> = eligible
-            .iter()
-            .copied()
-            .filter(|&i| {
-                cands[best].delta_bic - cands[i].delta_bic < opts.ambiguity_bic
-                    || (cands[best].consistency < opts.consistent_ratio
-                        && cands[i].consistency < opts.consistent_ratio)
-            })
-            .collect();
-        if group.len() > 1 {
-            let members: Vec<&Candidate> = group.iter().map(|&i| &cands[i]).collect();
-            ambiguity.push(Ambiguity {
-                round,
-                effects: members.iter().map(|c| c.name.clone()).collect(),
-                delta_bic: members.iter().map(|c| c.delta_bic).collect(),
-                separating_experiment: separating_experiment(&members, &state.model, &data, state.s),
-            });
-        }
-        cands[best].accepted = true;
-        let name = cands[best].effect;
-        let mut model = state.model.clone();
-        model.effects.push(name);
-        let mut fit = lm_fit(&model, &data, &all, &[cands[best].fit_x.clone()], 40);
-        candidates_out.extend(cands);
-        // Re-test earlier effects: drop each and refit; remove it if it no longer pays its way.
-        let mut changed = true;
-        while changed {
-            changed = false;
-            for e in model.effects.clone() {
-                if e == name {
-                    continue;
-                }
-                let mut reduced = model.clone();
-                reduced.effects.retain(|x| *x != e);
-                let f = lm_fit(&reduced, &data, &all, &[sub_x(&model, &fit.x, &reduced)], 60);
-                let k = e.fit_params().len() as f64;
-                let kept = (f.ssr - fit.ssr) / (state.s * state.s) - k * (n as f64).ln();
-                if kept < opts.min_delta_bic {
-                    removed.push(Removed { name: e.to_string(), round, delta_bic_kept: kept });
-                    model = reduced;
-                    fit = f;
-                    changed = true;
-                    break;
-                }
-            }
-        }
-        let (s, m) = data.noise_scale(&fit.resid);
-        let (s, m) = if m == 0 || !s.is_finite() || s <= 0.0 { (state.s, state.noise_dof) } else { (s, m) };
-        let r = ratio(&fit, n, model.n_params(), s);
-        state = State { model, fit, s, noise_dof: m, ratio: r };
-    }
+    let library = stages::resolve_library(&opts.library)?;
+    let data = stages::checked_data(rows)?;
+    let (start, before) = stages::calibrate_base(base, &data, progress);
+    let (library, not_identifiable) = stages::identifiable_library(library, base, &data);
+    let mut selection = stages::select_effects(start, &library, &data, opts, progress);
     // Name only the effects whose own signature conditions are consistent with noise in the final
-    // fit (all accepted effects together, so structure one of them leaves cannot be blamed on
-    // another); the others are partial candidates and leave the model, which is refitted.
-    let signature_tests: Vec<SignatureTest> = state
-        .model
-        .effects
-        .iter()
-        .map(|e| {
-            let structure = axis_structure(
-                &data,
-                &state.fit.resid,
-                (state.s, state.noise_dof),
-                opts.signature_alpha,
-                e.signature(),
-            );
-            SignatureTest { effect: e.to_string(), named: clears_signature(&structure), structure }
-        })
-        .collect();
-    let failing: Vec<Effect> =
-        state.model.effects.iter().zip(&signature_tests).filter(|(_, t)| !t.named).map(|(e, _)| *e).collect();
-    let mut partial_candidates = Vec::new();
-    // The noise the signature test used: what a partial candidate shows of its structure is
-    // measured against it, so the report says why it was not named.
-    let decision_s = (state.s, state.noise_dof);
-    if !failing.is_empty() {
-        let full_model = state.model.clone();
-        let full_x = state.fit.x.clone();
-        let mut named = state.model.clone();
-        named.effects.retain(|e| !failing.contains(e));
-        let fit = lm_fit(&named, &data, &all, &[sub_x(&full_model, &full_x, &named)], 60);
-        let (s, m) = data.noise_scale(&fit.resid);
-        let (s, m) = if m == 0 || !s.is_finite() || s <= 0.0 { (state.s, state.noise_dof) } else { (s, m) };
-        let r = ratio(&fit, n, named.n_params(), s);
-        let excess = |f: &Fit, p: usize| f.ssr / (s * s) - n.saturating_sub(p) as f64;
-        let excess_without = excess(&fit, named.n_params());
-        for &e in &failing {
-            let mut with = named.clone();
-            with.effects.push(e);
-            let mut starts = vec![sub_x(&full_model, &full_x, &with)];
-            starts.extend(candidate_starts(&fit.x, e, &data));
-            let f = lm_fit(&with, &data, &all, &starts, 60);
-            let structure = axis_structure(&data, &f.resid, decision_s, opts.signature_alpha, e.signature());
-            let mut above: Vec<&AxisStructure> =
-                structure.iter().filter(|a| !a.consistent_with_noise).collect();
-            above.sort_by(|a, b| b.chi2_per_dof.total_cmp(&a.chi2_per_dof));
-            let pred = with.predict(&f.x, &data, &all);
-            let mut round = 0;
-            for c in candidates_out.iter_mut().filter(|c| c.accepted && c.effect == e) {
-                c.accepted = false;
-                c.partial = true;
-                round = c.round;
-            }
-            partial_candidates.push(PartialCandidate {
-                effect: e.to_string(),
-                round,
-                share_of_excess: if excess_without > 0.0 {
-                    (1.0 - excess(&f, with.n_params()) / excess_without).clamp(0.0, 1.0)
-                } else {
-                    0.0
-                },
-                consistency_without: r,
-                consistency_with: ratio(&f, n, with.n_params(), s),
-                gap_with: data.gap(&pred),
-                unexplained_signature: above.iter().filter(|a| a.signature).map(|a| a.condition).collect(),
-                unexplained_along: above.iter().map(|a| a.condition).collect(),
-                params: effect_named_params(&with, &f, e, s),
-                structure,
-            });
-        }
-        state = State { model: named, fit, s, noise_dof: m, ratio: r };
-    }
-    let pred_after = state.model.predict(&state.fit.x, &data, &all);
-    let gap_after = data.gap(&pred_after);
-    let mut fitted = state.model.params_at(&state.fit.x);
-    let mut final_effects = Vec::new();
-    for e in &state.model.effects {
-        let params = effect_named_params(&state.model, &state.fit, *e, state.s);
-        for np in &params {
-            fitted.effects.std_dev.insert(np.name.clone(), np.std_dev);
-        }
-        final_effects.push(FinalEffect { name: e.to_string(), params });
-    }
-    let mean_mm_s = data.mean_speed() * 1e3;
-    let structure_after = structure(&data, &state.fit.resid, state.s);
-    let residual_structure = structure_before
-        .into_iter()
-        .zip(structure_after)
-        .map(|((axis, levels, before), (_, _, after))| Structure {
-            condition: axis.label().to_string(),
-            levels,
-            chi2_per_dof_before: before / dof(levels) as f64,
-            chi2_per_dof_after: after / dof(levels) as f64,
-        })
-        .collect();
-    Ok(GapReport {
-        rows: n,
-        gap_before,
-        gap_after,
-        named_effects: state.model.effects.iter().map(|e| e.to_string()).collect(),
-        nothing_missing: state.model.effects.is_empty() && partial_candidates.is_empty(),
-        partial_candidates,
-        signature_tests,
-        signature_alpha: opts.signature_alpha,
-        final_effects,
-        candidates: candidates_out,
-        ambiguity,
-        residual_structure,
-        removed,
-        not_identifiable,
-        noise_mm_s: s0 * (1.0 + fit::WEIGHT_FLOOR_OF_MEAN) * mean_mm_s,
-        consistency_before: ratio0,
-        consistency_after: state.ratio,
-        base_calibration: base_cal,
-        final_calibration: base_calibration(&state.model, &state.fit, state.s),
-        elapsed_s: t0.elapsed().as_secs_f64(),
-        pred_before_mm_s: pred_before.iter().map(|v| v * 1e3).collect(),
-        pred_after_mm_s: pred_after.iter().map(|v| v * 1e3).collect(),
-        fitted_params: Some(fitted),
-    })
+    // fit; the others are partial candidates and leave the model, which is refitted.
+    let signature_tests = stages::signature_tests(&selection.state, &data, opts);
+    let partial_candidates = stages::demote_partials(&mut selection, &signature_tests, &data, opts);
+    let naming = stages::Naming { signature_tests, partial_candidates };
+    Ok(stages::build_report(&data, opts, before, selection, naming, not_identifiable, t0))
 }
 
 /// What `host-sim gap` is asked for (the workflow's thresholds are [`Options`]).

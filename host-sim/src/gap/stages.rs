@@ -1,0 +1,511 @@
+//! The stages of [`super::analyze`], in the order it calls them: resolve the effect library and
+//! check the data, calibrate the base model (with its noise estimate), keep the identifiable
+//! effects, select effects round by round (candidates tested, the best accepted, earlier ones
+//! re-tested), test the accepted effects' signatures, demote those that fail to partial
+//! candidates, and build the report.
+
+use super::fit::{self, fit as lm_fit, Data, Fit, Model, BASE_PARAMS};
+use super::{
+    all_rows, axis_structure, base_calibration, base_starts, candidate_starts, clears_signature, cv_rms, dof,
+    effect_named_params, ratio, score, separating_experiment, structure, sub_x, Ambiguity, AxisStructure,
+    Candidate, FinalEffect, GapReport, Options, PartialCandidate, ProgressFn, Removed, SignatureTest, State,
+    Structure,
+};
+use crate::gap::measured_csv::MeasuredRow;
+use crate::motor::effects::{Axis, Effect};
+use crate::motor::params::Params;
+use anyhow::{anyhow, bail, Result};
+use rayon::prelude::*;
+
+/// Resolves [`Options::library`] into effects; fails on a name that is not an effect.
+pub(super) fn resolve_library(names: &[&'static str]) -> Result<Vec<Effect>> {
+    names
+        .iter()
+        .map(|name| name.parse::<Effect>().map_err(|e| anyhow!("effect library: {e}")))
+        .collect::<Result<Vec<Effect>>>()
+}
+
+/// The measured rows as fit data; fails on fewer than 8 rows or a mean speed that is not positive
+/// (the gap is relative to it).
+pub(super) fn checked_data(rows: &[MeasuredRow]) -> Result<Data> {
+    let data = Data::from_rows(rows);
+    let n = data.len();
+    if n < 8 {
+        bail!("need at least 8 measured rows, got {n}");
+    }
+    if data.mean_speed() <= 0.0 {
+        bail!("the mean measured speed must be positive (the gap is relative to it)");
+    }
+    Ok(data)
+}
+
+/// What the report says of the calibrated base model (before any effect is added).
+pub(super) struct Before {
+    /// Noise scale of the base fit (weighted units).
+    pub s: f64,
+    /// Residual variance / noise variance of the base fit.
+    pub ratio: f64,
+    /// Predicted speeds of the base fit (m/s) and their gap.
+    pub pred: Vec<f64>,
+    pub gap: f64,
+    pub calibration: Vec<super::BaseFit>,
+    /// χ² per condition of the base fit's residuals ([`structure`]).
+    pub structure: Vec<(Axis, usize, f64)>,
+}
+
+/// Calibrates the base parameters (no effects) to the data and estimates the noise from its
+/// residuals. Returns the workflow's starting state (base model, fit, noise, consistency) and
+/// what the report says of the base model.
+pub(super) fn calibrate_base(base: &Params, data: &Data, progress: ProgressFn) -> (State, Before) {
+    let all = all_rows(data);
+    progress("calibrating the base model", 0, 1);
+    let base_model = Model { base: base.clone(), effects: Vec::new() };
+    let base_fit = lm_fit(&base_model, data, &all, &base_starts(BASE_PARAMS), 100);
+    let (s0, m0) = estimate_noise(data, &base_fit);
+    let pred = base_model.predict(&base_fit.x, data, &all);
+    let before = Before {
+        s: s0,
+        ratio: ratio(&base_fit, data.len(), BASE_PARAMS, s0),
+        gap: data.gap(&pred),
+        pred,
+        calibration: base_calibration(&base_model, &base_fit, s0),
+        structure: structure(data, &base_fit.resid, s0),
+    };
+    let state = State { model: base_model, fit: base_fit, s: s0, noise_dof: m0, ratio: before.ratio };
+    (state, before)
+}
+
+/// Estimates the noise scale from the base fit's difference-based pseudo-residuals. Returns the
+/// scale and the number of pseudo-residuals behind it; with no curve of three loads, the residual
+/// scale and 0 (nothing can then be detected).
+fn estimate_noise(data: &Data, base_fit: &Fit) -> (f64, usize) {
+    let (s0, m0) = data.noise_scale(&base_fit.resid);
+    if m0 == 0 || !s0.is_finite() || s0 <= 0.0 {
+        ((base_fit.ssr / (data.len() - BASE_PARAMS) as f64).sqrt().max(1e-12), m0)
+    } else {
+        (s0, m0)
+    }
+}
+
+/// Re-estimates the noise scale from a later fit's residuals. Returns it with its
+/// pseudo-residual count, or `fallback` when the fit gives no usable estimate.
+fn refresh_noise(data: &Data, fit: &Fit, fallback: (f64, usize)) -> (f64, usize) {
+    let (s, m) = data.noise_scale(&fit.resid);
+    if m == 0 || !s.is_finite() || s <= 0.0 {
+        fallback
+    } else {
+        (s, m)
+    }
+}
+
+/// Drops the effects the base parameters already have active and splits the rest by whether the
+/// data can identify them: an effect whose every signature condition has one level in the data
+/// cannot be told from the base calibration. Returns the effects to try and the names of those
+/// left out.
+pub(super) fn identifiable_library(
+    library: Vec<Effect>,
+    base: &Params,
+    data: &Data,
+) -> (Vec<Effect>, Vec<String>) {
+    let library: Vec<Effect> = library.into_iter().filter(|e| !base.effects.is_active(*e)).collect();
+    let levels = structure(data, &vec![0.0; data.len()], 1.0);
+    let varied = |axis: Axis| levels.iter().any(|&(a, k, _)| a == axis && k >= 2);
+    let (library, unidentifiable): (Vec<Effect>, Vec<Effect>) =
+        library.into_iter().partition(|e| e.signature().iter().any(|&a| varied(a)));
+    (library, unidentifiable.iter().map(|e| e.to_string()).collect())
+}
+
+/// The outcome of effect selection.
+pub(super) struct Selection {
+    /// The model with the accepted effects, its fit and noise.
+    pub state: State,
+    /// Every candidate of every round, each round's sorted by ΔBIC.
+    pub candidates: Vec<Candidate>,
+    pub ambiguity: Vec<Ambiguity>,
+    pub removed: Vec<Removed>,
+}
+
+/// Rounds of effect selection: while effects may still be added and the residuals are not
+/// consistent with noise, tests every library effect not in the model, accepts the best one that
+/// pays its way (ΔBIC and cross-validation), records an ambiguity group, and re-tests the earlier
+/// effects. Returns the final state with every candidate, ambiguity and removal.
+pub(super) fn select_effects(
+    mut state: State,
+    library: &[Effect],
+    data: &Data,
+    opts: &Options,
+    progress: ProgressFn,
+) -> Selection {
+    let mut candidates_out: Vec<Candidate> = Vec::new();
+    let mut ambiguity = Vec::new();
+    let mut removed = Vec::new();
+    let mut round = 0;
+    while state.model.effects.len() < opts.max_effects && state.ratio >= opts.consistent_ratio {
+        round += 1;
+        let todo: Vec<Effect> =
+            library.iter().copied().filter(|e| !state.model.effects.contains(e)).collect();
+        if todo.is_empty() {
+            break;
+        }
+        let mut cands = test_candidates(&state, &todo, round, data, opts, progress);
+        let Some((best, group)) = best_and_group(&cands, opts) else {
+            candidates_out.extend(cands);
+            break;
+        };
+        if group.len() > 1 {
+            let members: Vec<&Candidate> = group.iter().map(|&i| &cands[i]).collect();
+            ambiguity.push(Ambiguity {
+                round,
+                effects: members.iter().map(|c| c.name.clone()).collect(),
+                delta_bic: members.iter().map(|c| c.delta_bic).collect(),
+                separating_experiment: separating_experiment(&members, &state.model, data, state.s),
+            });
+        }
+        cands[best].accepted = true;
+        let (effect, x) = (cands[best].effect, cands[best].fit_x.clone());
+        candidates_out.extend(cands);
+        state = accept_effect(&state, effect, x, round, data, opts, &mut removed);
+    }
+    Selection { state, candidates: candidates_out, ambiguity, removed }
+}
+
+/// Tests each effect of `todo` against the current state (in parallel): score at zero strength,
+/// refit with it, likelihood ratio and ΔBIC, cross-validated improvement, residual structure.
+/// Returns the candidates with their score ranks, sorted by ΔBIC (largest first).
+fn test_candidates(
+    state: &State,
+    todo: &[Effect],
+    round: usize,
+    data: &Data,
+    opts: &Options,
+    progress: ProgressFn,
+) -> Vec<Candidate> {
+    let all = all_rows(data);
+    let n = data.len();
+    let label = format!("round {round}: candidates scored and refitted");
+    progress(&label, 0, todo.len());
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let cv_without = cv_rms(&state.model, data, &state.fit.x, opts.folds);
+    let mut cands: Vec<Candidate> = todo
+        .par_iter()
+        .map(|&effect| {
+            let sc = score(state, effect, data);
+            let mut m = state.model.clone();
+            m.effects.push(effect);
+            let starts = candidate_starts(&state.fit.x, effect, data);
+            let f = lm_fit(&m, data, &all, &starts, 60);
+            let k = effect.fit_params().len() as f64;
+            let lr = (state.fit.ssr - f.ssr) / (state.s * state.s);
+            let cv_with = cv_rms(&m, data, &f.x, opts.folds);
+            let pred = m.predict(&f.x, data, &all);
+            let structure = axis_structure(
+                data,
+                &f.resid,
+                (state.s, state.noise_dof),
+                opts.signature_alpha,
+                effect.signature(),
+            );
+            let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+            progress(&label, d, todo.len());
+            Candidate {
+                name: effect.to_string(),
+                effect,
+                round,
+                score: sc,
+                score_rank: 0,
+                lr,
+                delta_bic: lr - k * (n as f64).ln(),
+                cv_improvement: 1.0 - cv_with / cv_without.max(1e-300),
+                gap: data.gap(&pred),
+                consistency: ratio(&f, n, m.n_params(), state.s),
+                accepted: false,
+                partial: false,
+                structure,
+                params: effect_named_params(&m, &f, effect, state.s),
+                fit_x: f.x.clone(),
+                pred,
+            }
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..cands.len()).collect();
+    order.sort_by(|&a, &b| cands[b].score.total_cmp(&cands[a].score));
+    for (rank, &i) in order.iter().enumerate() {
+        cands[i].score_rank = rank + 1;
+    }
+    cands.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
+    cands
+}
+
+/// The candidates (sorted by ΔBIC) that pay their way: ΔBIC and cross-validated improvement at
+/// least the thresholds. Returns the best one's index and its ambiguity group (eligible
+/// candidates within [`Options::ambiguity_bic`] of it, or both consistent with noise), or `None`
+/// when no candidate is eligible.
+fn best_and_group(cands: &[Candidate], opts: &Options) -> Option<(usize, Vec<usize>)> {
+    let eligible: Vec<usize> = (0..cands.len())
+        .filter(|&i| {
+            cands[i].delta_bic >= opts.min_delta_bic && cands[i].cv_improvement >= opts.min_cv_improvement
+        })
+        .collect();
+    let &best = eligible.first()?;
+    let group: Vec<usize> = eligible
+        .iter()
+        .copied()
+        .filter(|&i| {
+            cands[best].delta_bic - cands[i].delta_bic < opts.ambiguity_bic
+                || (cands[best].consistency < opts.consistent_ratio
+                    && cands[i].consistency < opts.consistent_ratio)
+        })
+        .collect();
+    Some((best, group))
+}
+
+/// Adds the accepted `effect` to the model, refits from its candidate fit `x`, re-tests the
+/// earlier effects (each removal pushed to `removed`), and re-estimates the noise. Returns the
+/// new state.
+fn accept_effect(
+    state: &State,
+    effect: Effect,
+    x: Vec<f64>,
+    round: usize,
+    data: &Data,
+    opts: &Options,
+    removed: &mut Vec<Removed>,
+) -> State {
+    let mut model = state.model.clone();
+    model.effects.push(effect);
+    let fit = lm_fit(&model, data, &all_rows(data), &[x], 40);
+    let (model, fit, dropped) = retest_earlier(model, fit, effect, state.s, round, data, opts);
+    removed.extend(dropped);
+    let (s, m) = refresh_noise(data, &fit, (state.s, state.noise_dof));
+    let r = ratio(&fit, data.len(), model.n_params(), s);
+    State { model, fit, s, noise_dof: m, ratio: r }
+}
+
+/// Re-tests the effects accepted before `newest`: drops each and refits, and removes it if it no
+/// longer pays its way, until none is removed. Returns the model, its fit and the removals.
+fn retest_earlier(
+    mut model: Model,
+    mut fit: Fit,
+    newest: Effect,
+    s: f64,
+    round: usize,
+    data: &Data,
+    opts: &Options,
+) -> (Model, Fit, Vec<Removed>) {
+    let mut removed = Vec::new();
+    let all = all_rows(data);
+    let n = data.len();
+    let mut changed = true;
+    while changed {
+        changed = false;
+        for e in model.effects.clone() {
+            if e == newest {
+                continue;
+            }
+            let mut reduced = model.clone();
+            reduced.effects.retain(|x| *x != e);
+            let f = lm_fit(&reduced, data, &all, &[sub_x(&model, &fit.x, &reduced)], 60);
+            let k = e.fit_params().len() as f64;
+            let kept = (f.ssr - fit.ssr) / (s * s) - k * (n as f64).ln();
+            if kept < opts.min_delta_bic {
+                removed.push(Removed { name: e.to_string(), round, delta_bic_kept: kept });
+                model = reduced;
+                fit = f;
+                changed = true;
+                break;
+            }
+        }
+    }
+    (model, fit, removed)
+}
+
+/// The signature test of every accepted effect in the final joint fit (all accepted effects
+/// together, so structure one of them leaves cannot be blamed on another). Returns one test per
+/// effect of the model, in model order; `named` when its signature conditions are consistent
+/// with noise.
+pub(super) fn signature_tests(state: &State, data: &Data, opts: &Options) -> Vec<SignatureTest> {
+    state
+        .model
+        .effects
+        .iter()
+        .map(|e| {
+            let structure = axis_structure(
+                data,
+                &state.fit.resid,
+                (state.s, state.noise_dof),
+                opts.signature_alpha,
+                e.signature(),
+            );
+            SignatureTest { effect: e.to_string(), named: clears_signature(&structure), structure }
+        })
+        .collect()
+}
+
+/// Demotes the accepted effects whose signature test failed to partial candidates: they leave the
+/// model, which is refitted with the named effects (and its noise re-estimated) into
+/// `selection.state`, and their candidates are marked partial. Returns the partial candidates,
+/// each with what it explains of the named model's excess and the structure it leaves.
+pub(super) fn demote_partials(
+    selection: &mut Selection,
+    tests: &[SignatureTest],
+    data: &Data,
+    opts: &Options,
+) -> Vec<PartialCandidate> {
+    let state = &selection.state;
+    let failing: Vec<Effect> =
+        state.model.effects.iter().zip(tests).filter(|(_, t)| !t.named).map(|(e, _)| *e).collect();
+    if failing.is_empty() {
+        return Vec::new();
+    }
+    let n = data.len();
+    let mut named = state.model.clone();
+    named.effects.retain(|e| !failing.contains(e));
+    let fit = lm_fit(&named, data, &all_rows(data), &[sub_x(&state.model, &state.fit.x, &named)], 60);
+    let (s, m) = refresh_noise(data, &fit, (state.s, state.noise_dof));
+    let r = ratio(&fit, n, named.n_params(), s);
+    let without = Without { full: state, named: &named, fit: &fit, s, ratio: r };
+    let mut partial_candidates = Vec::new();
+    for &e in &failing {
+        let mut round = 0;
+        for c in selection.candidates.iter_mut().filter(|c| c.accepted && c.effect == e) {
+            c.accepted = false;
+            c.partial = true;
+            round = c.round;
+        }
+        partial_candidates.push(partial_candidate(e, round, &without, data, opts));
+    }
+    selection.state = State { model: named, fit, s, noise_dof: m, ratio: r };
+    partial_candidates
+}
+
+/// The refit without the failing effects, against which a partial candidate is measured.
+struct Without<'a> {
+    /// The final joint fit (all accepted effects): its noise decided the signature test.
+    full: &'a State,
+    named: &'a Model,
+    fit: &'a Fit,
+    /// Noise scale re-estimated from `fit`, and its consistency ratio.
+    s: f64,
+    ratio: f64,
+}
+
+/// Refits the named model plus the failing effect `e` (accepted in `round`). Returns its partial
+/// candidate: share of the excess over noise it removes, consistency and gap with it, and the
+/// conditions whose structure stays above the noise the signature test used.
+fn partial_candidate(e: Effect, round: usize, w: &Without, data: &Data, opts: &Options) -> PartialCandidate {
+    let all = all_rows(data);
+    let n = data.len();
+    let s = w.s;
+    // The noise the signature test used: what a partial candidate shows of its structure is
+    // measured against it, so the report says why it was not named.
+    let decision_s = (w.full.s, w.full.noise_dof);
+    let excess = |f: &Fit, p: usize| f.ssr / (s * s) - n.saturating_sub(p) as f64;
+    let excess_without = excess(w.fit, w.named.n_params());
+    let mut with = w.named.clone();
+    with.effects.push(e);
+    let mut starts = vec![sub_x(&w.full.model, &w.full.fit.x, &with)];
+    starts.extend(candidate_starts(&w.fit.x, e, data));
+    let f = lm_fit(&with, data, &all, &starts, 60);
+    let structure = axis_structure(data, &f.resid, decision_s, opts.signature_alpha, e.signature());
+    let mut above: Vec<&AxisStructure> = structure.iter().filter(|a| !a.consistent_with_noise).collect();
+    above.sort_by(|a, b| b.chi2_per_dof.total_cmp(&a.chi2_per_dof));
+    let pred = with.predict(&f.x, data, &all);
+    PartialCandidate {
+        effect: e.to_string(),
+        round,
+        share_of_excess: if excess_without > 0.0 {
+            (1.0 - excess(&f, with.n_params()) / excess_without).clamp(0.0, 1.0)
+        } else {
+            0.0
+        },
+        consistency_without: w.ratio,
+        consistency_with: ratio(&f, n, with.n_params(), s),
+        gap_with: data.gap(&pred),
+        unexplained_signature: above.iter().filter(|a| a.signature).map(|a| a.condition).collect(),
+        unexplained_along: above.iter().map(|a| a.condition).collect(),
+        params: effect_named_params(&with, &f, e, s),
+        structure,
+    }
+}
+
+/// The naming decision: every accepted effect's signature test and the partial candidates.
+pub(super) struct Naming {
+    pub signature_tests: Vec<SignatureTest>,
+    pub partial_candidates: Vec<PartialCandidate>,
+}
+
+/// Builds the report from the stages' results: gaps and predictions before and after, the fitted
+/// parameter file with the named effects' uncertainties, residual structure before and after per
+/// condition, and the time since `t0`.
+pub(super) fn build_report(
+    data: &Data,
+    opts: &Options,
+    before: Before,
+    selection: Selection,
+    naming: Naming,
+    not_identifiable: Vec<String>,
+    t0: std::time::Instant,
+) -> GapReport {
+    let state = selection.state;
+    let all = all_rows(data);
+    let pred_after = state.model.predict(&state.fit.x, data, &all);
+    let gap_after = data.gap(&pred_after);
+    let (fitted, final_effects) = final_effects(&state);
+    let mean_mm_s = data.mean_speed() * 1e3;
+    let residual_structure = residual_structure(before.structure, structure(data, &state.fit.resid, state.s));
+    GapReport {
+        rows: data.len(),
+        gap_before: before.gap,
+        gap_after,
+        named_effects: state.model.effects.iter().map(|e| e.to_string()).collect(),
+        nothing_missing: state.model.effects.is_empty() && naming.partial_candidates.is_empty(),
+        partial_candidates: naming.partial_candidates,
+        signature_tests: naming.signature_tests,
+        signature_alpha: opts.signature_alpha,
+        final_effects,
+        candidates: selection.candidates,
+        ambiguity: selection.ambiguity,
+        residual_structure,
+        removed: selection.removed,
+        not_identifiable,
+        noise_mm_s: before.s * (1.0 + fit::WEIGHT_FLOOR_OF_MEAN) * mean_mm_s,
+        consistency_before: before.ratio,
+        consistency_after: state.ratio,
+        base_calibration: before.calibration,
+        final_calibration: base_calibration(&state.model, &state.fit, state.s),
+        elapsed_s: t0.elapsed().as_secs_f64(),
+        pred_before_mm_s: before.pred.iter().map(|v| v * 1e3).collect(),
+        pred_after_mm_s: pred_after.iter().map(|v| v * 1e3).collect(),
+        fitted_params: Some(fitted),
+    }
+}
+
+/// The final model's parameters as a parameter file, with each named effect's one-sigma
+/// uncertainties recorded in it. Returns the file and the named effects with their parameters.
+fn final_effects(state: &State) -> (Params, Vec<FinalEffect>) {
+    let mut fitted = state.model.params_at(&state.fit.x);
+    let mut final_effects = Vec::new();
+    for e in &state.model.effects {
+        let params = effect_named_params(&state.model, &state.fit, *e, state.s);
+        for np in &params {
+            fitted.effects.std_dev.insert(np.name.clone(), np.std_dev);
+        }
+        final_effects.push(FinalEffect { name: e.to_string(), params });
+    }
+    (fitted, final_effects)
+}
+
+/// Pairs the χ² per condition of the base fit and of the final fit. Returns them per degree of
+/// freedom, one entry per condition.
+fn residual_structure(before: Vec<(Axis, usize, f64)>, after: Vec<(Axis, usize, f64)>) -> Vec<Structure> {
+    before
+        .into_iter()
+        .zip(after)
+        .map(|((axis, levels, before), (_, _, after))| Structure {
+            condition: axis.label().to_string(),
+            levels,
+            chi2_per_dof_before: before / dof(levels) as f64,
+            chi2_per_dof_after: after / dof(levels) as f64,
+        })
+        .collect()
+}
