@@ -43,8 +43,13 @@ impl Encoder {
     }
     /// Declares the present position to be `position_nm` (referencing).
     pub fn set_position_nm(&mut self, position_nm: i64) {
-        // `nm_per_count` ≥ 1 (see `new`): the checked form only keeps a panic path out.
-        self.counts = position_nm.checked_div(self.nm_per_count).unwrap_or(position_nm);
+        // In 32 bits: this runs in the control tick (at the reference mark), where a 64-bit
+        // division is a software routine (`.ci/elf-gate`). Positions beyond ±2.1 m are outside
+        // any travel and clamp. `nm_per_count` ≥ 1 (see `new`): the checked form only keeps a
+        // panic path out.
+        let p = position_nm.clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32;
+        let per = i32::try_from(self.nm_per_count).unwrap_or(i32::MAX);
+        self.counts = i64::from(p.checked_div(per).unwrap_or(p));
     }
 }
 

@@ -686,3 +686,32 @@ fn overrun_supervisor_reaction() {
     let v = s.judge(&t, due(8) + 500, true);
     assert!(v.late && !v.tripped_now);
 }
+
+/// The soft start's blend in 32-bit arithmetic (no 64-bit division in the tick) is exactly
+/// `rest + (word − rest)·k/n` truncated toward `rest`, the closed form in i64, for every word,
+/// rest and ramp length up to 65 536 samples.
+#[test]
+fn the_soft_start_blend_is_the_closed_form_exactly() {
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut next = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        seed
+    };
+    for _ in 0..2000 {
+        let rest = (next() & 0xFFFF) as u16;
+        let word = (next() & 0xFFFF) as u16;
+        let n = 1 + (next() % 65_536) as u32;
+        let k = (next() % u64::from(n)) as u32;
+        let mut s = SoftStart::new(rest, n);
+        // Run the ramp to sample k with the word held, then read sample k's blend.
+        let mut skip = vec![[word; 2]; k as usize];
+        s.apply(true, &mut skip);
+        let mut one = [[word; 2]];
+        s.apply(true, &mut one);
+        let d = i64::from(word) - i64::from(rest);
+        let expected = i64::from(rest) + d * i64::from(k) / i64::from(n);
+        assert_eq!(i64::from(one[0][0]), expected, "rest {rest} word {word} k {k} n {n}");
+    }
+}

@@ -51,13 +51,22 @@ impl SoftStart {
     }
 }
 
-/// `rest + (word − rest) · k / n`, rounded toward `rest` (integer arithmetic, no overflow for
-/// 16-bit words and any `n`).
+/// `rest + (word − rest) · k / n`, rounded toward `rest`, in 32-bit integer arithmetic (it runs
+/// in the control tick, where a 64-bit division is a software routine, `.ci/elf-gate`):
+/// `|word − rest| · k` fits in a u32 for `k < n ≤ 65 536`; a longer ramp is scaled down to that
+/// (the blend then moves in steps of `n / 65 536` samples).
 fn blend(rest: u16, word: u16, k: u32, n: u32) -> u16 {
     if n == 0 || k >= n {
         return word;
     }
-    let d = i64::from(word) - i64::from(rest);
-    let v = i64::from(rest) + (d * i64::from(k)).checked_div(i64::from(n)).unwrap_or(0);
-    v.clamp(0, i64::from(u16::MAX)) as u16
+    let shift = (32 - (n - 1).leading_zeros()).saturating_sub(16);
+    let (k, n) = (k >> shift, n >> shift);
+    let magnitude = u32::from(word.abs_diff(rest));
+    let step = magnitude.saturating_mul(k) / n.max(1);
+    let step = u16::try_from(step).unwrap_or(u16::MAX);
+    if word >= rest {
+        rest.saturating_add(step)
+    } else {
+        rest.saturating_sub(step)
+    }
 }
