@@ -1,7 +1,7 @@
 //! Argument checks shared by the handlers: the axis (`1`), numbers, flags, `{<AxisID> <Value>}`
 //! pairs, positions within the travel, and [`Gcs::axis_query`] for the one-line-per-axis queries.
 
-use super::commands::GcsResult;
+use super::call::GcsResult;
 use super::error;
 use super::framing::Out;
 use super::num::{parse_decimal, Decimal};

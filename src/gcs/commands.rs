@@ -2,8 +2,10 @@
 //! [`WAIT_FOR_STORE`], and [`Gcs::execute`] with what it needs to pick a handler
 //! ([`Gcs::is_read_only`], [`Gcs::is_settings_only`]).
 
+use super::args::no_args;
+use super::call::{Call, GcsResult, Handler};
 use super::framing::{is_space, Out, Pending};
-use super::info::{cst_query, csv_query, hlp_query, idn_query, sai_query, xlt_query};
+use super::info::{cst_query, csv_query, idn_query, sai_query, xlt_query};
 use super::motion::{frf, hlt, mov, mvr, pos, ron, stp, svo, xos};
 use super::settings::{
     acc, acc_query, dec, dec_query, hpa_query, spa, spa_query, tmn_query, tmx_query, vel, vel_query, wpa,
@@ -26,19 +28,6 @@ pub struct Command {
     /// Changes nothing but the controller's settings (see [`Gcs::is_settings_only`]).
     pub settings_only: bool,
 }
-
-/// What a line command works with: its arguments (the tokens after the name), the controller,
-/// the board and the reply under construction.
-pub(super) struct Call<'c, 'r> {
-    pub(super) args: &'c [&'c [u8]],
-    pub(super) ctl: &'c mut Controller,
-    pub(super) board: &'c mut dyn Board,
-    pub(super) out: &'c mut Out<'r>,
-}
-
-type Handler = fn(&mut Gcs, Call) -> GcsResult;
-
-pub(super) type GcsResult = Result<(), i32>;
 
 impl Command {
     /// A single-byte command (answered in [`Gcs::execute`] from the byte).
@@ -280,4 +269,25 @@ impl Gcs {
         }
         run(self, Call { args, ctl, board, out })
     }
+}
+
+/// `HLP?`: the table above, one line per command (it lives beside the table it lists).
+fn hlp_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
+    let Call { args, out, .. } = c;
+    no_args(args)?;
+    out.line();
+    out.s("The following commands are valid:");
+    for c in COMMANDS {
+        out.line();
+        out.s(c.name);
+        if !c.syntax.is_empty() {
+            out.s(" ");
+            out.s(c.syntax);
+        }
+        out.s(" ");
+        out.s(c.help);
+    }
+    out.line();
+    out.s("end of help");
+    Ok(())
 }

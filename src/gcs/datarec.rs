@@ -11,9 +11,9 @@
 //! [`Gcs::continue_reply`] until [`Gcs::reply_pending`] is false.
 
 use super::args::{axis, no_args};
-use super::commands::{Call, GcsResult};
+use super::call::{Call, GcsResult};
 use super::framing::Out;
-use super::{error, Board, Gcs};
+use super::{error, Board, Gcs, Reply};
 use crate::gcs::num::{parse_int, write_scaled};
 use crate::recorder::{self, Recorder, RecorderError, DEPTH, OPTIONS, TABLES, TRIGGERS};
 
@@ -373,5 +373,27 @@ impl DrrCursor {
     /// Rows left.
     pub fn rows_left(&self) -> usize {
         self.end.saturating_sub(self.next)
+    }
+}
+
+/// The long `DRR?` reply's continuation, beside the rows it writes.
+impl Gcs {
+    /// The next part of a reply that goes on (see [`Gcs::reply_pending`]), appended to `reply`
+    /// (give it an empty one: a part is as long as the buffer takes).
+    pub fn continue_reply(&mut self, board: &dyn Board, reply: &mut Reply) {
+        let Some(mut cursor) = self.drr.take() else { return };
+        let Some(rec) = board.recorder() else { return };
+        let mut out = Out { buf: reply, lines: 0, ok: true };
+        let before = cursor.rows_left();
+        if write_rows(&mut cursor, rec, &mut out) {
+            if cursor.rows_left() == before {
+                // No room for a single row: the caller's buffer was not empty. Give up.
+                return;
+            }
+            out.open_end();
+            self.drr = Some(cursor);
+        } else {
+            out.finish();
+        }
     }
 }

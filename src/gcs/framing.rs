@@ -4,7 +4,7 @@
 //! [`Gcs::continue_reply`]).
 
 use super::num::{self, write_fixed, write_general, write_i64, write_scaled, write_u64};
-use super::{datarec, Board, Gcs, Reply, LINE_CAPACITY};
+use super::{Gcs, Reply, LINE_CAPACITY};
 
 pub(super) type Line = heapless::Vec<u8, LINE_CAPACITY>;
 
@@ -128,24 +128,5 @@ impl Gcs {
     /// A new command drops what is left.
     pub fn reply_pending(&self) -> bool {
         self.drr.is_some()
-    }
-
-    /// The next part of a reply that goes on (see [`Gcs::reply_pending`]), appended to `reply`
-    /// (give it an empty one: a part is as long as the buffer takes).
-    pub fn continue_reply(&mut self, board: &dyn Board, reply: &mut Reply) {
-        let Some(mut cursor) = self.drr.take() else { return };
-        let Some(rec) = board.recorder() else { return };
-        let mut out = Out { buf: reply, lines: 0, ok: true };
-        let before = cursor.rows_left();
-        if datarec::write_rows(&mut cursor, rec, &mut out) {
-            if cursor.rows_left() == before {
-                // No room for a single row: the caller's buffer was not empty. Give up.
-                return;
-            }
-            out.open_end();
-            self.drr = Some(cursor);
-        } else {
-            out.finish();
-        }
     }
 }

@@ -2,7 +2,7 @@
 //! and the identification strings they print.
 
 use super::args::no_args;
-use super::commands::{Call, GcsResult, COMMANDS};
+use super::call::{Call, GcsResult};
 use super::{error, Gcs};
 
 /// `*IDN?` fields: maker, model, (serial), version (three dot-separated parts at most).
@@ -38,26 +38,6 @@ pub(super) fn csv_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
     no_args(args)?;
     out.line();
     out.s("2.0");
-    Ok(())
-}
-
-pub(super) fn hlp_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, out, .. } = c;
-    no_args(args)?;
-    out.line();
-    out.s("The following commands are valid:");
-    for c in COMMANDS {
-        out.line();
-        out.s(c.name);
-        if !c.syntax.is_empty() {
-            out.s(" ");
-            out.s(c.syntax);
-        }
-        out.s(" ");
-        out.s(c.help);
-    }
-    out.line();
-    out.s("end of help");
     Ok(())
 }
 

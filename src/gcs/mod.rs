@@ -8,15 +8,17 @@
 //! commands of their own, without LF. A failing command replies nothing and latches a GCS error
 //! number that `ERR?` returns and clears; a line with any invalid part executes nothing.
 //!
-//! Where things are: `framing` (line assembly, [`Pending`], the reply buffer and a reply that
-//! goes on over several buffers), `commands` ([`COMMANDS`] and [`Gcs::execute`]), `args`
-//! (argument checks shared by the handlers), and the handlers by group: `motion` (servo,
+//! Where things are, from the bottom up (no file imports one above it): `framing` (line
+//! assembly, [`Pending`], the reply buffer), `call` (what a handler gets and returns), `args`
+//! (argument checks shared by the handlers), the handlers by group: `motion` (servo,
 //! referencing, moves, stops), `state` (queries of the controller's state), `settings`
-//! (parameters, motion and travel limits, `WPA`), `info` (identification, help, loop timing),
-//! [`datarec`] (the data recorder). Here: the protocol state [`Gcs`], the [`Board`] interface
-//! and the [`error`] numbers.
+//! (parameters, motion and travel limits, `WPA`), `info` (identification, loop timing),
+//! [`datarec`] (the data recorder, and a `DRR?` reply that goes on over several buffers); and
+//! on top `commands` ([`COMMANDS`], [`Gcs::execute`] and `HLP?`, which lists the table). Here:
+//! the protocol state [`Gcs`], the [`Board`] interface and the [`error`] numbers.
 
 mod args;
+mod call;
 mod commands;
 pub mod datarec;
 mod framing;

@@ -3,7 +3,7 @@
 //! the mapping of the controller's [`CommandError`] to GCS error numbers.
 
 use super::args::{axis, flag, no_args, number, pairs, position_nm, to_f32, within_travel};
-use super::commands::{Call, GcsResult};
+use super::call::{Call, GcsResult};
 use super::num::parse_int;
 use super::{error, Board, Gcs};
 use crate::controller::{CommandError, Controller};

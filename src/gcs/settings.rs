@@ -3,7 +3,7 @@
 //! `WPA` (store to non-volatile memory).
 
 use super::args::{axis, no_args, number, pairs, to_f32};
-use super::commands::{Call, GcsResult};
+use super::call::{Call, GcsResult};
 use super::framing::Out;
 use super::num::parse_int;
 use super::{error, params, Gcs};

@@ -2,7 +2,7 @@
 //! the extensions `XPF?` (preload), `XDA?`/`XDF?` (drive), `XFT?` (fault), `XTM?` (thrust limits).
 
 use super::args::no_args;
-use super::commands::{Call, GcsResult};
+use super::call::{Call, GcsResult};
 use super::{error, Gcs};
 
 pub(super) fn err_query(gcs: &mut Gcs, c: Call) -> GcsResult {
