@@ -95,3 +95,38 @@ fn the_model_with_the_contacts_timing_follows_the_sourced_plant_within_5_percent
     eprintln!("worst: {err:.2} % at {worst:?}");
     assert!(err < 5.0, "{err:.1} % of the no-load speed at {worst:?}");
 }
+
+/// Issue 28 item 1, the band: at no load the model holds where light carriages are fastest
+/// (0.7–1.2 kHz) as well as at 1.5–2.2 kHz, every carriage, 5–18 N, within 3 % of the plant's
+/// speed. Left out, with the reason measured: 1.3 and 1.4 kHz, where at 5–10 N the bouncing foot
+/// wanders between impact patterns over hundreds of periods and the plant's steady-speed measure
+/// (two 10 ms windows that agree) stops early (50 kg, 1.4 kHz, 10 N: 2.40 mm/s from it, 1.67 over a
+/// 0.5 s run); and 0.5–0.6 kHz, where the heavier carriages barely move at 16–18 N.
+#[test]
+fn the_model_with_the_contacts_timing_holds_over_the_band_at_no_load() {
+    use host_sim::motor::plant::steady_speed_m_s;
+    use host_sim::motor::steady_contact::ContactModel;
+    use rayon::prelude::*;
+    let p0 = Params::prototype_sourced();
+    let mut cases = Vec::new();
+    for f in [700.0, 900.0, 1100.0, 1200.0, 1500.0, 1800.0, 2200.0] {
+        for m in [0.1, 0.3, 1.0, 5.0, 50.0] {
+            for f0 in [5.0, 10.0, 16.0, 18.0] {
+                cases.push((f, m, f0));
+            }
+        }
+    }
+    let worst = cases
+        .par_iter()
+        .map(|&(f, m, f0)| {
+            let mut p = p0.clone();
+            p.slider.mass_kg = m;
+            let op = OperatingPoint { preload_n: f0, voltage_v: 100.0, frequency_hz: f };
+            let model = ContactModel::new(&p, op).no_load_speed_m_s();
+            let plant = steady_speed_m_s(&p, f0, 100.0, f, 1, 0.0);
+            ((model - plant).abs() / plant.abs().max(1e-6), (f, m, f0, model, plant))
+        })
+        .reduce(|| (0.0, (0.0, 0.0, 0.0, 0.0, 0.0)), |a, b| if b.0 > a.0 { b } else { a });
+    eprintln!("worst {:.2} % at {:?}", worst.0 * 100.0, worst.1);
+    assert!(worst.0 < 0.03, "{:.1} % at (Hz, kg, N, model, plant) {:?}", worst.0 * 100.0, worst.1);
+}
