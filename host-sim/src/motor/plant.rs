@@ -122,6 +122,14 @@ pub fn layer_damping_n_s_per_m(p: &Params, kc_n_per_m: f64, c3_n_s_per_m: f64) -
     }
 }
 
+/// The foot's normal contact at a static preload: its spring `kc` (with `hertz_contact`, the
+/// stiffness at this preload; the file's otherwise) and its dashpot `c3` on the foot, whose
+/// damping ratio gives the contact pair's restitution.
+pub fn contact_spring(p: &Params, preload_n: f64) -> (f64, f64) {
+    let kc = p.effects.contact_stiffness_n_per_m(p.contact.stiffness_n_per_m, preload_n);
+    (kc, 2.0 * p.contact.damping_ratio() * (kc * p.stator.foot_mass_kg).sqrt())
+}
+
 /// The Coulomb laws' friction constants of a parameter set, with the contact's `kc` and `c3`.
 pub fn friction_law(p: &Params, kc_n_per_m: f64, c3_n_s_per_m: f64) -> FrictionLaw {
     FrictionLaw {
@@ -225,12 +233,9 @@ impl Plant {
     /// A plant at rest: preload `preload_n` set through the preload spring, stacks at mid-range,
     /// slider at 0.
     pub fn new(p: &Params, preload_n: f64) -> Self {
-        let m1 = p.stator.foot_mass_kg;
         let k1 = p.k1_n_per_m();
         let k2 = p.stator.preload_spring_n_per_m;
-        // `hertz_contact`: the contact stiffness at this static preload (unchanged without it).
-        let kc = p.effects.contact_stiffness_n_per_m(p.contact.stiffness_n_per_m, preload_n);
-        let c3 = 2.0 * p.contact.damping_ratio() * (kc * m1).sqrt();
+        let (kc, c3) = contact_spring(p, preload_n);
         let dt = p.integrator.step_s;
 
         let build = |contact: bool| {

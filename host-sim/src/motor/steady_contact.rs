@@ -37,7 +37,7 @@
 
 use crate::motor::contact_friction::{FrictionLaw, Layer, StepInput};
 use crate::motor::params::{FrictionModel, Params};
-use crate::motor::plant::{friction_law, state_matrix};
+use crate::motor::plant::{contact_spring, friction_law, state_matrix};
 use crate::motor::roots::{falling_root, stall_load_n};
 use crate::motor::steady::{amplitudes, OperatingPoint};
 use nalgebra::SMatrix;
@@ -79,11 +79,9 @@ impl ContactProfile {
     pub fn new(p: &Params, op: OperatingPoint) -> Self {
         let amp = amplitudes(p, op.voltage_v, op.frequency_hz);
         let w = TAU * op.frequency_hz;
-        let m1 = p.stator.foot_mass_kg;
         let k1 = p.k1_n_per_m();
         let k2 = p.stator.preload_spring_n_per_m;
-        let kc = p.effects.contact_stiffness_n_per_m(p.contact.stiffness_n_per_m, op.preload_n);
-        let c3 = 2.0 * p.contact.damping_ratio() * (kc * m1).sqrt();
+        let (kc, c3) = contact_spring(p, op.preload_n);
         // Static equilibrium with the preload (as the plant starts).
         let y1 = op.preload_n / kc;
         let y2 = y1 + op.preload_n / k1;
@@ -209,8 +207,7 @@ pub struct Orbit {
 impl ContactModel {
     pub fn new(p: &Params, op: OperatingPoint) -> Self {
         let profile = ContactProfile::new(p, op);
-        let kc = p.effects.contact_stiffness_n_per_m(p.contact.stiffness_n_per_m, op.preload_n);
-        let c3 = 2.0 * p.contact.damping_ratio() * (kc * p.stator.foot_mass_kg).sqrt();
+        let (kc, c3) = contact_spring(p, op.preload_n);
         let mu_stick = match p.friction.model {
             FrictionModel::StaticDynamic => p.friction.mu_static,
             FrictionModel::Coulomb | FrictionModel::Lugre => p.friction.mu_dynamic,
