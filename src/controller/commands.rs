@@ -236,6 +236,7 @@ impl Controller {
         };
         self.mode = Mode::Coarse;
         self.activity = Activity::OpenLoop(run);
+        self.limit_stopped = false;
         Ok(())
     }
 

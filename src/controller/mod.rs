@@ -249,8 +249,8 @@ pub struct Controller {
     /// The move's speed-up while it is being timed.
     speedup: Option<SpeedUp>,
     reference_failures: u32,
-    /// Moves and open-loop runs a limit switch stopped (wraps), and whether the move in progress
-    /// has been stopped by one already (counted once).
+    /// Moves and open-loop runs a limit switch stopped (wraps), and whether the move or run in
+    /// progress has been stopped by one already (counted once; cleared when one starts).
     limit_stops: u32,
     limit_stopped: bool,
     faults: u32,

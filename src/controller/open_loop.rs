@@ -20,7 +20,6 @@ impl Controller {
         let blocked =
             (run.direction < 0 && inputs.negative_limit) || (run.direction > 0 && inputs.positive_limit);
         if blocked {
-            self.limit_stopped = false;
             self.note_limit_stop();
         }
         if run.periods == 0 || blocked {
