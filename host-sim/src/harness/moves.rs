@@ -86,13 +86,10 @@ pub fn try_ready_board(
     })
 }
 
-/// Commands a move to `to_nm` and runs until settled for `hold_s` (or `max_s` passed).
-pub fn run_move(sil: &mut Sil, to_nm: i64, max_s: f64, hold_s: f64) -> MoveResult {
-    let count_nm = sil.plant.params().sensors.encoder_resolution_m * 1e9;
-    let from_nm = sil.plant.slider_position_m() * 1e9;
-    let t0 = sil.time_s();
-    let mut result = MoveResult {
-        from_um: from_nm * 1e-3,
+/// A move to `to_nm` from where the slider is, before it starts: nothing measured yet.
+fn unstarted(sil: &Sil, to_nm: i64) -> MoveResult {
+    MoveResult {
+        from_um: sil.plant.slider_position_m() * 1e6,
         to_um: to_nm as f64 * 1e-3,
         preload_n: sil.plant.preload_force_n(),
         load_n: -sil.plant.load.constant_n,
@@ -105,7 +102,15 @@ pub fn run_move(sil: &mut Sil, to_nm: i64, max_s: f64, hold_s: f64) -> MoveResul
         drive_frequency_hz: f64::from(sil.controller.coarse_frequency_hz()),
         fault: None,
         trace: Vec::new(),
-    };
+    }
+}
+
+/// Commands a move to `to_nm` and runs until settled for `hold_s` (or `max_s` passed).
+pub fn run_move(sil: &mut Sil, to_nm: i64, max_s: f64, hold_s: f64) -> MoveResult {
+    let count_nm = sil.plant.params().sensors.encoder_resolution_m * 1e9;
+    let from_nm = sil.plant.slider_position_m() * 1e9;
+    let t0 = sil.time_s();
+    let mut result = unstarted(sil, to_nm);
     if let Err(e) = sil.controller.move_to(to_nm) {
         result.fault = Some(FaultReport { code: 0, text: command_error_text(e).to_string() });
         result.final_error_nm = from_nm - to_nm as f64;
@@ -216,17 +221,10 @@ pub fn single_move(p: &Params, spec: MoveSpec) -> anyhow::Result<MoveResult> {
             return Ok(MoveResult {
                 from_um: 0.0,
                 to_um,
-                preload_n: sil.plant.preload_force_n(),
                 load_n,
-                settle_time_s: None,
-                on_target_time_s: None,
                 final_error_nm: -to_um * 1e3,
-                overshoot_nm: 0.0,
-                slide_back_nm: None,
-                max_following_error_um: 0.0,
-                drive_frequency_hz: f64::from(sil.controller.coarse_frequency_hz()),
                 fault: Some(FaultReport { code, text }),
-                trace: Vec::new(),
+                ..unstarted(&sil, (to_um * 1e3).round() as i64)
             });
         }
     };
