@@ -130,3 +130,55 @@ fn the_model_with_the_contacts_timing_holds_over_the_band_at_no_load() {
     eprintln!("worst {:.2} % at {:?}", worst.0 * 100.0, worst.1);
     assert!(worst.0 < 0.03, "{:.1} % at (Hz, kg, N, model, plant) {:?}", worst.0 * 100.0, worst.1);
 }
+
+/// The contact model carries the parameter file's effects as the plant applies them (the plant,
+/// run with each effect at a moderate size, is the reference): guide friction at the carriage's
+/// own speed, the drive sense's asymmetry, μ by preload, Stribeck, and the drive gain of an
+/// amplifier pole. 1 kg on the sourced plant at 16 and 10 N, no load and 40 % of stall, both
+/// senses: within 5 % of the plant's no-load speed there, the bound the model-grid test holds
+/// without effects.
+#[test]
+fn the_model_with_the_contacts_timing_carries_the_effects_as_the_plant_does() {
+    use host_sim::motor::plant::steady_speed_m_s;
+    use host_sim::motor::steady_contact::{ContactModel, ContactProfile};
+    use rayon::prelude::*;
+    use std::sync::Arc;
+    let effects: [&[(&str, f64)]; 5] = [
+        &[("rail_coulomb_n", 0.4)],
+        &[("asymmetry_fraction", 0.07)],
+        &[("mu_drop_per_n", 0.05), ("knee_preload_n", 10.0)],
+        &[("stribeck_rise", 1.5)],
+        &[("rolloff_corner_hz", 2500.0)],
+    ];
+    let mut cases = Vec::new();
+    for (k, e) in effects.iter().enumerate() {
+        for (f0, v, f) in [(16.0, 100.0, 1500.0), (10.0, 80.0, 2100.0)] {
+            for direction in [1i8, -1] {
+                for load_share in [0.0, 0.4] {
+                    cases.push((k, e, f0, v, f, direction, load_share));
+                }
+            }
+        }
+    }
+    let worst = cases
+        .par_iter()
+        .map(|&(k, e, f0, v, f, direction, load_share)| {
+            let mut p = Params::prototype_sourced();
+            for (name, value) in e.iter() {
+                p.effects.set(name, *value).expect("a library parameter");
+            }
+            let op = OperatingPoint { preload_n: f0, voltage_v: v, frequency_hz: f };
+            let model = ContactModel::with_profile(&p, Arc::new(ContactProfile::new(&p, op)), direction);
+            let load_n = load_share * p.friction.mu_dynamic * f0;
+            let plant_no_load = steady_speed_m_s(&p, f0, v, f, direction, 0.0);
+            let plant = steady_speed_m_s(&p, f0, v, f, direction, load_n);
+            let speed = model.speed_at_load_m_s(load_n).unwrap_or(f64::NAN);
+            ((speed - plant).abs() / plant_no_load.abs().max(1e-6), (k, f0, f, direction, load_n, speed, plant))
+        })
+        .reduce(
+            || (0.0, (0, 0.0, 0.0, 0, 0.0, 0.0, 0.0)),
+            |a, b| if b.0 > a.0 || b.0.is_nan() { b } else { a },
+        );
+    eprintln!("worst {:.2} % at {:?}", worst.0 * 100.0, worst.1);
+    assert!(worst.0 < 0.05, "{:.1} % at (effect, N, Hz, sense, load, model, plant) {:?}", worst.0 * 100.0, worst.1);
+}

@@ -5,10 +5,17 @@
 //! parameters ([`Effect::fit_params`]). Levenberg–Marquardt with box bounds, forward-difference
 //! Jacobian.
 
+use crate::gap::base::{closed_params, Anchor};
 use crate::gap::measured_csv::MeasuredRow;
 use crate::motor::effects::{model_speed_m_s, Condition, Effect, Effects};
 use crate::motor::params::Params;
 use nalgebra::{DMatrix, DVector};
+
+/// Median of |z| for a standard normal z (its 75 % quantile).
+const NORMAL_MEDIAN_ABS: f64 = 0.674_489_750_196_081_7;
+/// Asymptotic efficiency of the median absolute deviation against the standard deviation for
+/// normal data (2/π·… = 0.3675).
+const MEDIAN_EFFICIENCY: f64 = 0.3675;
 
 /// Relative weight of a row: `|v| + 0.25·v̄` (matches the noise model of `measure`); the absolute
 /// noise scale is estimated from the data.
@@ -114,11 +121,15 @@ impl Data {
     }
 
     /// Difference-based noise estimate (Gasser et al. pseudo-residuals of the weighted residuals
-    /// along load within each curve): smooth structure cancels, white noise stays. Returns the
-    /// noise scale in weighted units and the number of pseudo-residuals (0: not estimable).
+    /// along load within each curve): smooth structure cancels, white noise stays. The scale is
+    /// the pseudo-residuals' median absolute value over its normal quantile (1/0.6745), not their
+    /// RMS: a model that misses the shape of a few curves (a carriage that stalls early under a
+    /// guide's friction) puts curvature into their pseudo-residuals, and the RMS would then take
+    /// the missing effect for noise. Returns the scale in weighted units and the noise's degrees
+    /// of freedom: the median of normal deviates carries 0.37 of their information (its
+    /// asymptotic efficiency), so `0.37 × count` (0: not estimable).
     pub fn noise_scale(&self, weighted_resid: &[f64]) -> (f64, usize) {
-        let mut sum = 0.0;
-        let mut count = 0usize;
+        let mut pseudo: Vec<f64> = Vec::new();
         for c in 0..self.n_curves {
             let mut idx: Vec<usize> = (0..self.len()).filter(|&i| self.curve[i] == c).collect();
             idx.sort_by(|&a, &b| self.conds[a].load_n.total_cmp(&self.conds[b].load_n));
@@ -131,14 +142,16 @@ impl Data {
                 let a = (x2 - x1) / (x2 - x0);
                 let b = (x1 - x0) / (x2 - x0);
                 let e = a * weighted_resid[w[0]] + b * weighted_resid[w[2]] - weighted_resid[w[1]];
-                sum += e * e / (a * a + b * b + 1.0);
-                count += 1;
+                pseudo.push((e / (a * a + b * b + 1.0).sqrt()).abs());
             }
         }
-        if count == 0 {
+        if pseudo.is_empty() {
             return (f64::NAN, 0);
         }
-        ((sum / count as f64).sqrt(), count)
+        pseudo.sort_by(f64::total_cmp);
+        let n = pseudo.len();
+        let median = if n % 2 == 1 { pseudo[n / 2] } else { 0.5 * (pseudo[n / 2 - 1] + pseudo[n / 2]) };
+        (median / NORMAL_MEDIAN_ABS, ((MEDIAN_EFFICIENCY * n as f64).round() as usize).max(1))
     }
 }
 
@@ -176,6 +189,9 @@ pub fn named_values(effect: Effect, x: &[f64]) -> Vec<(&'static str, f64)> {
 pub struct Model {
     pub base: Params,
     pub effects: Vec<Effect>,
+    /// With a contact base (`[model] steady = "contact"`): the anchored surrogate's differences
+    /// ([`crate::gap::base`]); `None`: the constant-speed model as it is.
+    pub anchor: Option<Anchor>,
 }
 
 pub const BASE_PARAMS: usize = 3;
@@ -184,6 +200,11 @@ pub const BASE_NAMES: [&str; 3] =
 const LOG_BOUND: f64 = 1.0;
 
 impl Model {
+    /// The base parameters with no effects, anchored for `data` when they select the contact model.
+    pub fn new(base: &Params, data: &Data) -> Self {
+        Model { base: base.clone(), effects: Vec::new(), anchor: crate::gap::base::new_anchor(base, data) }
+    }
+
     pub fn n_params(&self) -> usize {
         BASE_PARAMS + self.effects.iter().map(|e| e.fit_params().len()).sum::<usize>()
     }
@@ -226,7 +247,13 @@ impl Model {
 
     pub fn predict(&self, x: &[f64], data: &Data, rows: &[usize]) -> Vec<f64> {
         let p = self.params_at(x);
-        rows.iter().map(|&i| model_speed_m_s(&p, &data.conds[i])).collect()
+        match &self.anchor {
+            None => rows.iter().map(|&i| model_speed_m_s(&p, &data.conds[i])).collect(),
+            Some(a) => {
+                let q = closed_params(&p);
+                rows.iter().map(|&i| model_speed_m_s(&q, &data.conds[i]) + a.correction_m_s(i, x)).collect()
+            }
+        }
     }
 
     fn weighted_resid(&self, x: &[f64], data: &Data, rows: &[usize]) -> Vec<f64> {

@@ -17,6 +17,7 @@
 //!   fit, this χ² is below its `1 − α` quantile along every condition of the effect's signature
 //!   ([`crate::motor::effects::Effect::signature`]); otherwise it is a *partial candidate*.
 
+pub mod base;
 pub mod chi2;
 pub mod fit;
 pub mod measure;
@@ -168,8 +169,38 @@ pub struct SignatureTest {
     pub structure: Vec<AxisStructure>,
 }
 
-/// An effect that explains part of the data but leaves structure above noise along its own
-/// signature: not named, not in the fitted model.
+/// The workflow's verdict on an effect accepted in its round (ΔBIC and cross-validation), from
+/// the final joint fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Tier {
+    /// Explains most of the excess over noise and leaves its own signature conditions consistent
+    /// with noise: added to the model.
+    Named,
+    /// Explains most of the excess over noise but leaves structure above noise along one of its
+    /// signature conditions: added to the model (the gap shrinks with it), and the structure left
+    /// is reported along its conditions: something else acts there too.
+    NamedWithStructureLeft,
+    /// Explains less than half of the excess over noise (it soaks up part of what another cause
+    /// leaves, e.g. the base model's own error): not added.
+    Partial,
+}
+
+/// The verdict on one accepted effect.
+#[derive(Debug, Clone, Serialize)]
+pub struct Verdict {
+    pub effect: String,
+    pub tier: Tier,
+    /// Share of the excess over noise, `SSR/s² − (n − p)`, of the final model without this
+    /// effect that the effect removes (0–1).
+    pub share_of_excess: f64,
+    /// Conditions whose residual structure stays above noise in the final fit with it, most
+    /// structured first (its own signature conditions among them decide tier 2).
+    pub structure_left_along: Vec<&'static str>,
+}
+
+/// An accepted effect that explains less than half of the excess over noise: not named, not in
+/// the fitted model.
 #[derive(Debug, Clone, Serialize)]
 pub struct PartialCandidate {
     pub effect: String,
@@ -221,9 +252,14 @@ pub struct GapReport {
     pub rows: usize,
     pub gap_before: f64,
     pub gap_after: f64,
+    /// The effects added to the model (tiers `named` and `named_with_structure_left`).
     pub named_effects: Vec<String>,
-    /// Effects accepted by ΔBIC and cross-validation whose fit still leaves structure above noise
-    /// along their own signature: they explain part of the gap, not all of it.
+    /// Of those, the ones that leave structure above noise along their own signature.
+    pub named_with_structure_left: Vec<String>,
+    /// The verdict on every effect accepted in its round, in the order accepted.
+    pub verdicts: Vec<Verdict>,
+    /// Effects accepted by ΔBIC and cross-validation that explain less than half of the excess
+    /// over noise: not added.
     pub partial_candidates: Vec<PartialCandidate>,
     /// The signature test of every accepted effect, in the final joint fit.
     pub signature_tests: Vec<SignatureTest>,
@@ -612,8 +648,8 @@ pub fn analyze(
     // Name only the effects whose own signature conditions are consistent with noise in the final
     // fit; the others are partial candidates and leave the model, which is refitted.
     let signature_tests = stages::signature_tests(&selection.state, &data, opts);
-    let partial_candidates = stages::demote_partials(&mut selection, &signature_tests, &data, opts);
-    let naming = stages::Naming { signature_tests, partial_candidates };
+    let (verdicts, partial_candidates) = stages::decide_tiers(&mut selection, &signature_tests, &data, opts);
+    let naming = stages::Naming { signature_tests, verdicts, partial_candidates };
     Ok(stages::build_report(&data, opts, before, selection, naming, not_identifiable, t0))
 }
 

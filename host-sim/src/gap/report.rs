@@ -106,11 +106,24 @@ pub fn markdown(r: &GapReport, measured: &Path) -> String {
     } else if r.named_effects.is_empty() {
         let _ = writeln!(
             s,
-            "**No library effect explains the data.** The closest ones explain part of it and leave \
-             structure above noise along their own conditions: see *Partial candidates*.\n"
+            "**No library effect explains the data.** Residual variance is {:.2}× the noise's; \
+             the closest effects explain less than half of the excess over noise: see *Partial \
+             candidates*.\n",
+            r.consistency_after
         );
     } else {
         let _ = writeln!(s, "**Named effects** (in the order accepted): {}\n", r.named_effects.join(", "));
+        for v in r.verdicts.iter().filter(|v| v.tier == super::Tier::NamedWithStructureLeft) {
+            let _ = writeln!(
+                s,
+                "*{}* is named with structure left: it explains {:.0} % of the excess over noise, \
+                 and residual structure above noise stays along {} (something else acts there \
+                 too).\n",
+                v.effect,
+                100.0 * v.share_of_excess,
+                v.structure_left_along.join(", ")
+            );
+        }
         let _ = writeln!(s, "| effect | parameter | final fit | ± 1σ |\n|---|---|---|---|");
         for e in &r.final_effects {
             for p in &e.params {
@@ -306,7 +319,10 @@ pub fn print_summary(r: &GapReport, out: &Path) {
     if r.nothing_missing {
         println!("nothing missing: the base model explains the data to within noise");
     } else if r.named_effects.is_empty() {
-        println!("named effects: none (no library effect explains the data)");
+        println!(
+            "named effects: none (no library effect explains the data; residual/noise variance {:.2})",
+            r.consistency_after
+        );
     } else {
         println!("named effects: {}", r.named_effects.join(", "));
         for e in &r.final_effects {
@@ -314,6 +330,14 @@ pub fn print_summary(r: &GapReport, out: &Path) {
                 println!("  {}.{} = {:.5} ± {:.5}", e.name, p.name, p.value, p.std_dev);
             }
         }
+    }
+    for v in r.verdicts.iter().filter(|v| v.tier == super::Tier::NamedWithStructureLeft) {
+        println!(
+            "  {} explains {:.0} % of the excess over noise and is added; structure left along: {}",
+            v.effect,
+            100.0 * v.share_of_excess,
+            v.structure_left_along.join(", ")
+        );
     }
     for p in &r.partial_candidates {
         let along: Vec<String> = p

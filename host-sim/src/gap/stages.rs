@@ -4,12 +4,13 @@
 //! re-tested), test the accepted effects' signatures, demote those that fail to partial
 //! candidates, and build the report.
 
+use super::base::{fit_anchored, wants_contact, CANDIDATE_ANCHORS, MAX_ANCHORS};
 use super::fit::{self, fit as lm_fit, Data, Fit, Model, BASE_PARAMS};
 use super::{
     all_rows, axis_structure, base_calibration, base_starts, candidate_starts, clears_signature, cv_rms, dof,
     effect_named_params, ratio, score, separating_experiment, structure, sub_x, Ambiguity, AxisStructure,
     Candidate, FinalEffect, GapReport, Options, PartialCandidate, ProgressFn, Removed, SignatureTest, State,
-    Structure,
+    Structure, Tier, Verdict,
 };
 use crate::gap::measured_csv::MeasuredRow;
 use crate::motor::effects::{Axis, Effect};
@@ -59,8 +60,8 @@ pub(super) struct Before {
 pub(super) fn calibrate_base(base: &Params, data: &Data, progress: ProgressFn) -> (State, Before) {
     let all = all_rows(data);
     progress("calibrating the base model", 0, 1);
-    let base_model = Model { base: base.clone(), effects: Vec::new() };
-    let base_fit = lm_fit(&base_model, data, &all, &base_starts(BASE_PARAMS), 100);
+    let (base_model, base_fit) =
+        fit_anchored(&Model::new(base, data), data, &all, &base_starts(BASE_PARAMS), 100, MAX_ANCHORS, false);
     let (s0, m0) = estimate_noise(data, &base_fit);
     let pred = base_model.predict(&base_fit.x, data, &all);
     let before = Before {
@@ -107,7 +108,11 @@ pub(super) fn identifiable_library(
     base: &Params,
     data: &Data,
 ) -> (Vec<Effect>, Vec<String>) {
-    let library: Vec<Effect> = library.into_iter().filter(|e| !base.effects.is_active(*e)).collect();
+    // The contact model has the file's carriage: `slider_inertia` is in the base already.
+    let library: Vec<Effect> = library
+        .into_iter()
+        .filter(|e| !(base.effects.is_active(*e) || (wants_contact(base) && *e == Effect::SliderInertia)))
+        .collect();
     let levels = structure(data, &vec![0.0; data.len()], 1.0);
     let varied = |axis: Axis| levels.iter().any(|&(a, k, _)| a == axis && k >= 2);
     let (library, unidentifiable): (Vec<Effect>, Vec<Effect>) =
@@ -194,6 +199,22 @@ fn test_candidates(
             m.effects.push(effect);
             let starts = candidate_starts(&state.fit.x, effect, data);
             let f = lm_fit(&m, data, &all, &starts, 60);
+            // On a contact base that fit moved the effect the way the closed form does; one
+            // anchor at its end point refits it on the contact model's own slopes, and the
+            // likelihood ratio is between the contact model's sums of squares.
+            let (m, f) = if m.anchor.is_some() {
+                let (m1, f1) = fit_anchored(&m, data, &all, &[f.x], 60, CANDIDATE_ANCHORS, true);
+                match starts.first() {
+                    // Worse than without the effect: the closed form led the effect astray; from
+                    // zero strength on the contact model's own slopes instead (never worse).
+                    Some(zero) if f1.ssr > state.fit.ssr => {
+                        fit_anchored(&m, data, &all, std::slice::from_ref(zero), 60, CANDIDATE_ANCHORS, true)
+                    }
+                    _ => (m1, f1),
+                }
+            } else {
+                (m, f)
+            };
             let k = effect.fit_params().len() as f64;
             let lr = (state.fit.ssr - f.ssr) / (state.s * state.s);
             let cv_with = cv_rms(&m, data, &f.x, opts.folds);
@@ -273,7 +294,7 @@ fn accept_effect(
 ) -> State {
     let mut model = state.model.clone();
     model.effects.push(effect);
-    let fit = lm_fit(&model, data, &all_rows(data), &[x], 40);
+    let (model, fit) = fit_anchored(&model, data, &all_rows(data), &[x], 40, MAX_ANCHORS, false);
     let (model, fit, dropped) = retest_earlier(model, fit, effect, state.s, round, data, opts);
     removed.extend(dropped);
     let (s, m) = refresh_noise(data, &fit, (state.s, state.noise_dof));
@@ -304,7 +325,8 @@ fn retest_earlier(
             }
             let mut reduced = model.clone();
             reduced.effects.retain(|x| *x != e);
-            let f = lm_fit(&reduced, data, &all, &[sub_x(&model, &fit.x, &reduced)], 60);
+            let start = sub_x(&model, &fit.x, &reduced);
+            let (reduced, f) = fit_anchored(&reduced, data, &all, &[start], 60, MAX_ANCHORS, false);
             let k = e.fit_params().len() as f64;
             let kept = (f.ssr - fit.ssr) / (s * s) - k * (n as f64).ln();
             if kept < opts.min_delta_bic {
@@ -341,26 +363,77 @@ pub(super) fn signature_tests(state: &State, data: &Data, opts: &Options) -> Vec
         .collect()
 }
 
-/// Demotes the accepted effects whose signature test failed to partial candidates: they leave the
-/// model, which is refitted with the named effects (and its noise re-estimated) into
-/// `selection.state`, and their candidates are marked partial. Returns the partial candidates,
-/// each with what it explains of the named model's excess and the structure it leaves.
-pub(super) fn demote_partials(
+/// An accepted effect stays in the model when it removes at least this share of the excess over
+/// noise that the final model without it leaves: "most of the excess". A hidden effect removes
+/// nearly all of what it causes (0.86–1.0 on the recovery sets); one that only soaks up part of
+/// another cause (the base model's own error, a drive chain outside the library) removes a
+/// minority of it, since that cause's structure is not its shape.
+pub const MIN_SHARE_OF_EXCESS: f64 = 0.5;
+
+/// The verdict on each accepted effect, from the final joint fit: its share of the excess over
+/// noise (a refit without it) and its signature test. Effects below [`MIN_SHARE_OF_EXCESS`] are
+/// partial candidates: they leave the model, which is refitted with the others (and its noise
+/// re-estimated) into `selection.state`, and their candidates are marked partial. Returns the
+/// verdicts (in model order) and the partial candidates, each with what it explains of the
+/// kept model's excess and the structure it leaves.
+pub(super) fn decide_tiers(
     selection: &mut Selection,
     tests: &[SignatureTest],
     data: &Data,
     opts: &Options,
-) -> Vec<PartialCandidate> {
+) -> (Vec<Verdict>, Vec<PartialCandidate>) {
     let state = &selection.state;
-    let failing: Vec<Effect> =
-        state.model.effects.iter().zip(tests).filter(|(_, t)| !t.named).map(|(e, _)| *e).collect();
-    if failing.is_empty() {
-        return Vec::new();
-    }
     let n = data.len();
+    let all = all_rows(data);
+    let s = state.s;
+    let excess = |f: &Fit, p: usize| f.ssr / (s * s) - n.saturating_sub(p) as f64;
+    let full_excess = excess(&state.fit, state.model.n_params()).max(0.0);
+    let verdicts: Vec<Verdict> = state
+        .model
+        .effects
+        .iter()
+        .zip(tests)
+        .map(|(&e, t)| {
+            let mut without = state.model.clone();
+            without.effects.retain(|x| *x != e);
+            let start = sub_x(&state.model, &state.fit.x, &without);
+            let (wm, wf) = fit_anchored(&without, data, &all, &[start], 60, MAX_ANCHORS, false);
+            let excess_without = excess(&wf, wm.n_params());
+            let share =
+                if excess_without > 0.0 { (1.0 - full_excess / excess_without).clamp(0.0, 1.0) } else { 0.0 };
+            let mut above: Vec<&AxisStructure> =
+                t.structure.iter().filter(|a| !a.consistent_with_noise).collect();
+            above.sort_by(|a, b| b.chi2_per_dof.total_cmp(&a.chi2_per_dof));
+            let tier = if share < MIN_SHARE_OF_EXCESS {
+                Tier::Partial
+            } else if t.named {
+                Tier::Named
+            } else {
+                Tier::NamedWithStructureLeft
+            };
+            Verdict {
+                effect: e.to_string(),
+                tier,
+                share_of_excess: share,
+                structure_left_along: above.iter().map(|a| a.condition).collect(),
+            }
+        })
+        .collect();
+    let failing: Vec<Effect> = state
+        .model
+        .effects
+        .iter()
+        .zip(&verdicts)
+        .filter(|(_, v)| v.tier == Tier::Partial)
+        .map(|(e, _)| *e)
+        .collect();
+    if failing.is_empty() {
+        return (verdicts, Vec::new());
+    }
     let mut named = state.model.clone();
     named.effects.retain(|e| !failing.contains(e));
-    let fit = lm_fit(&named, data, &all_rows(data), &[sub_x(&state.model, &state.fit.x, &named)], 60);
+    let start = sub_x(&state.model, &state.fit.x, &named);
+    let (named, fit) = fit_anchored(&named, data, &all, &[start], 60, MAX_ANCHORS, false);
     let (s, m) = refresh_noise(data, &fit, (state.s, state.noise_dof));
     let r = ratio(&fit, n, named.n_params(), s);
     let without = Without { full: state, named: &named, fit: &fit, s, ratio: r };
@@ -375,7 +448,7 @@ pub(super) fn demote_partials(
         partial_candidates.push(partial_candidate(e, round, &without, data, opts));
     }
     selection.state = State { model: named, fit, s, noise_dof: m, ratio: r };
-    partial_candidates
+    (verdicts, partial_candidates)
 }
 
 /// The refit without the failing effects, against which a partial candidate is measured.
@@ -405,7 +478,7 @@ fn partial_candidate(e: Effect, round: usize, w: &Without, data: &Data, opts: &O
     with.effects.push(e);
     let mut starts = vec![sub_x(&w.full.model, &w.full.fit.x, &with)];
     starts.extend(candidate_starts(&w.fit.x, e, data));
-    let f = lm_fit(&with, data, &all, &starts, 60);
+    let (with, f) = fit_anchored(&with, data, &all, &starts, 60, MAX_ANCHORS, false);
     let structure = axis_structure(data, &f.resid, decision_s, opts.signature_alpha, e.signature());
     let mut above: Vec<&AxisStructure> = structure.iter().filter(|a| !a.consistent_with_noise).collect();
     above.sort_by(|a, b| b.chi2_per_dof.total_cmp(&a.chi2_per_dof));
@@ -431,6 +504,7 @@ fn partial_candidate(e: Effect, round: usize, w: &Without, data: &Data, opts: &O
 /// The naming decision: every accepted effect's signature test and the partial candidates.
 pub(super) struct Naming {
     pub signature_tests: Vec<SignatureTest>,
+    pub verdicts: Vec<Verdict>,
     pub partial_candidates: Vec<PartialCandidate>,
 }
 
@@ -458,7 +532,16 @@ pub(super) fn build_report(
         gap_before: before.gap,
         gap_after,
         named_effects: state.model.effects.iter().map(|e| e.to_string()).collect(),
-        nothing_missing: state.model.effects.is_empty() && naming.partial_candidates.is_empty(),
+        named_with_structure_left: naming
+            .verdicts
+            .iter()
+            .filter(|v| v.tier == Tier::NamedWithStructureLeft)
+            .map(|v| v.effect.clone())
+            .collect(),
+        verdicts: naming.verdicts,
+        nothing_missing: state.model.effects.is_empty()
+            && naming.partial_candidates.is_empty()
+            && state.ratio < opts.consistent_ratio,
         partial_candidates: naming.partial_candidates,
         signature_tests: naming.signature_tests,
         signature_alpha: opts.signature_alpha,

@@ -30,6 +30,10 @@ pub struct Params {
     pub slider: Slider,
     pub sensors: Sensors,
     pub integrator: Integrator,
+    /// Which steady-state model stands for this motor where a model is fitted to it (the gap
+    /// workflow's base); absent: the constant-speed model.
+    #[serde(default)]
+    pub model: ModelChoice,
     /// Effects beyond the base model (`crate::motor::effects`); optional, absent in the base model.
     #[serde(default, skip_serializing_if = "Effects::is_none")]
     pub effects: Effects,
@@ -108,6 +112,28 @@ pub struct Contact {
     /// How the friction layer's shear dashpot and slip are modelled.
     #[serde(default)]
     pub friction_layer: FrictionLayer,
+}
+
+/// The steady-state model a parameter file selects (`[model]`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ModelChoice {
+    #[serde(default)]
+    pub steady: SteadyModel,
+}
+
+/// The steady-state thrust models of `crate::motor`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SteadyModel {
+    /// Eqs. 13–22 at a constant slider speed (`steady.rs`): exact for a heavy carriage, closed
+    /// form and fast.
+    #[default]
+    ConstantSpeed,
+    /// The contact's timing and the carriage's periodic motion (`steady_contact.rs`): the
+    /// stator's normal motion solved with its impacts, the carriage riding the foot. Within a
+    /// few per cent of the plant on every carriage; milliseconds per point.
+    Contact,
 }
 
 /// The friction layer's law (Coulomb friction models with `tangential_stiffness_n_per_m > 0`).

@@ -31,17 +31,29 @@
 //!    regula falsi on `v(0)`, the layer carried over from a first period. The thrust model's
 //!    speed is its mean.
 //!
+//! The parameter file's effects enter as the plant applies them: the drive gain of
+//! `amplifier_rolloff` / `stator_resonance` on the voltage, `hertz_contact` in `kc`, the foot's
+//! speed × the drive sense's `assembly_asymmetry` factor, μ × the preload's and (Coulomb laws)
+//! the slip's factor, the guide's `rail_friction` on the carriage at its own speed, and the
+//! `slider_inertia` mass.
+//!
 //! What it leaves out of the plant: the DAC's 200 kS/s staircase and the amplifier's transient
 //! (its gain is in `Yc`, `Xc`; its phase lag is the same on both channels, so it moves nothing),
 //! and LuGre (the Coulomb laws only; LuGre runs as Coulomb with μd).
 
 use crate::motor::contact_friction::{FrictionLaw, Layer, StepInput};
+use crate::motor::effects::Effects;
 use crate::motor::params::{FrictionModel, Params};
 use crate::motor::plant::{contact_spring, friction_law, state_matrix};
-use crate::motor::roots::{falling_root, stall_load_n};
+use crate::motor::roots::stall_load_n;
 use crate::motor::steady::{amplitudes, OperatingPoint};
 use nalgebra::SMatrix;
 use std::f64::consts::{PI, TAU};
+use std::sync::Arc;
+
+/// The periodic orbit's start speed is found to this share of the foot's peak speed: the mean
+/// speed then to about the same share, 1e-4 of the 1 % a speed is measured to.
+const ROOT_TOLERANCE: f64 = 1e-6;
 
 /// Steps per drive period of both orbits.
 pub const STEPS: usize = 1024;
@@ -68,6 +80,9 @@ pub struct ContactProfile {
     /// Peak tangential foot speed ω·Xc (m/s).
     pub foot_peak_m_s: f64,
     pub frequency_hz: f64,
+    /// Drive voltage after the parameter file's drive gain (V peak-to-peak), and the preload.
+    pub voltage_v: f64,
+    pub preload_n: f64,
     /// Whether one period's impulses repeated the last one's (else the last periods are kept).
     pub settled: bool,
     /// Periods run from the static equilibrium.
@@ -77,6 +92,7 @@ pub struct ContactProfile {
 impl ContactProfile {
     /// Solves the stator's normal periodic motion at an operating point.
     pub fn new(p: &Params, op: OperatingPoint) -> Self {
+        let op = OperatingPoint { voltage_v: op.voltage_v * p.effects.drive_gain(op.frequency_hz), ..op };
         let amp = amplitudes(p, op.voltage_v, op.frequency_hz);
         let w = TAU * op.frequency_hz;
         let k1 = p.k1_n_per_m();
@@ -133,6 +149,8 @@ impl ContactProfile {
                     contact_n: now,
                     foot_peak_m_s: w * amp.xc_m,
                     frequency_hz: op.frequency_hz,
+                    voltage_v: op.voltage_v,
+                    preload_n: op.preload_n,
                     settled: true,
                     periods: period,
                 };
@@ -146,6 +164,8 @@ impl ContactProfile {
             contact_n: history,
             foot_peak_m_s: w * amp.xc_m,
             frequency_hz: op.frequency_hz,
+            voltage_v: op.voltage_v,
+            preload_n: op.preload_n,
             settled: false,
             periods: MAX_PERIODS,
         }
@@ -186,12 +206,17 @@ fn advance(
 /// The steady-state model with the contact's timing at one operating point.
 #[derive(Debug, Clone)]
 pub struct ContactModel {
-    pub profile: ContactProfile,
+    /// The normal motion (shared: it does not depend on the carriage, μ or the tangential scale).
+    pub profile: Arc<ContactProfile>,
     pub mass_kg: f64,
+    /// Peak tangential foot speed along the drive sense (m/s): ω·Xc × the sense's asymmetry.
+    pub foot_peak_m_s: f64,
     law: FrictionLaw,
+    /// μ for sticking, with the preload's and the slip's peak factor of the effects.
     mu_stick: f64,
     /// The guide's viscous drag (`slider.damping_n_s_per_m`).
     guide_n_s_per_m: f64,
+    effects: Effects,
     /// cos φ at the step ends.
     cos_end: Vec<f64>,
 }
@@ -205,19 +230,31 @@ pub struct Orbit {
 }
 
 impl ContactModel {
+    /// The model along the positive drive sense.
     pub fn new(p: &Params, op: OperatingPoint) -> Self {
-        let profile = ContactProfile::new(p, op);
-        let (kc, c3) = contact_spring(p, op.preload_n);
+        Self::with_profile(p, Arc::new(ContactProfile::new(p, op)), 1)
+    }
+
+    /// The model on a normal motion already solved (`profile` must be `ContactProfile::new` of a
+    /// parameter set with `p`'s stator, contact, normal force ratio and drive gain), along drive
+    /// sense `direction` (±1).
+    pub fn with_profile(p: &Params, profile: Arc<ContactProfile>, direction: i8) -> Self {
+        let (kc, c3) = contact_spring(p, profile.preload_n);
         let mu_stick = match p.friction.model {
             FrictionModel::StaticDynamic => p.friction.mu_static,
             FrictionModel::Coulomb | FrictionModel::Lugre => p.friction.mu_dynamic,
         };
+        let effects = p.effects.clone();
+        let stick_scale = effects.friction_factor(profile.preload_n) * effects.stribeck_peak();
+        let amp = amplitudes(p, profile.voltage_v, profile.frequency_hz);
         ContactModel {
-            profile,
             mass_kg: p.effects.slider_mass_kg(p.slider.mass_kg),
+            foot_peak_m_s: TAU * profile.frequency_hz * amp.xc_m * effects.tangential_factor(direction),
+            profile,
             law: friction_law(p, kc, c3),
-            mu_stick,
+            mu_stick: mu_stick * stick_scale,
             guide_n_s_per_m: p.slider.damping_n_s_per_m,
+            effects,
             cos_end: (1..=STEPS).map(|i| (-PI + TAU * i as f64 / STEPS as f64).cos()).collect(),
         }
     }
@@ -227,17 +264,29 @@ impl ContactModel {
     fn period(&self, v0: f64, mut layer: Layer, load_n: f64) -> (f64, f64, f64, Layer) {
         let h = 1.0 / (self.profile.frequency_hz * STEPS as f64);
         let (mut v, mut sum, mut lo, mut hi) = (v0, 0.0, v0, v0);
+        let plain = self.effects.is_none();
+        let preload_factor = self.effects.friction_factor(self.profile.preload_n);
         for (fc, c) in self.profile.contact_n.iter().zip(self.cos_end.iter().cycle()) {
-            let external_n = -load_n - self.guide_n_s_per_m * v;
+            let foot_m_s = self.foot_peak_m_s * c;
+            // The guide's friction is symmetric in the sense, so it reads the same along the drive.
+            let (rail_n, mu_scale) = if plain {
+                (0.0, 1.0)
+            } else {
+                (
+                    self.effects.rail_force_on_slider_n(v),
+                    preload_factor * self.effects.stribeck_factor(foot_m_s - v),
+                )
+            };
+            let external_n = -load_n - self.guide_n_s_per_m * v + rail_n;
             let input = StepInput {
                 dt_s: h,
                 mass_kg: self.mass_kg,
                 slider_m_s: v,
                 external_n,
                 contact_n: *fc,
-                foot_m_s: self.profile.foot_peak_m_s * c,
+                foot_m_s,
                 mu_stick: self.mu_stick,
-                mu_scale: 1.0,
+                mu_scale,
             };
             let friction = layer.step(&self.law, &input);
             v += h * (external_n + friction) / self.mass_kg;
@@ -258,15 +307,77 @@ impl ContactModel {
     /// The periodic motion under a constant load opposing the drive; `None` when none exists in
     /// ±4× the foot's peak speed.
     pub fn orbit(&self, load_n: f64) -> Option<Orbit> {
-        let w = self.profile.foot_peak_m_s.max(1e-9);
-        let excess = |v0: f64| self.settled_period(v0, load_n).0 - v0;
+        self.orbit_near(load_n, None).map(|(orbit, _)| orbit)
+    }
+
+    /// [`Self::orbit`] searched first within 2 % of the foot's peak speed about `hint_v0` (a
+    /// period's start speed of a nearby solution, e.g. the same point with other friction), the
+    /// bracket widened fourfold until it holds the root. Returns the orbit and its start speed.
+    /// The root is the same as from the full bracket (to [`ROOT_TOLERANCE`] of the foot's peak speed); only
+    /// the periods spent finding it are fewer.
+    pub fn orbit_near(&self, load_n: f64, hint_v0: Option<f64>) -> Option<(Orbit, f64)> {
+        let w = self.foot_peak_m_s.abs().max(1e-9);
+        // v(T) − v(0) and the period's mean speed and ripple, from v(0).
+        let excess = |v0: f64| {
+            let (end, mean, ripple) = self.settled_period(v0, load_n);
+            (end - v0, Orbit { mean_speed_m_s: mean, ripple_m_s: ripple })
+        };
         let (lo, hi) = (-4.0 * w, 4.0 * w);
-        if excess(lo) <= 0.0 || excess(hi) >= 0.0 {
+        let ((mut a, mut ea), (mut b, mut eb)) = match hint_v0.filter(|h| h.is_finite() && *h > lo && *h < hi)
+        {
+            Some(h) => {
+                let mut half = 0.02 * w;
+                let (mut a, mut b) = ((h - half).max(lo), (h + half).min(hi));
+                let (mut ea, mut eb) = (excess(a).0, excess(b).0);
+                while (ea <= 0.0 && a > lo) || (eb >= 0.0 && b < hi) {
+                    half *= 4.0;
+                    if ea <= 0.0 && a > lo {
+                        a = (h - half).max(lo);
+                        ea = excess(a).0;
+                    }
+                    if eb >= 0.0 && b < hi {
+                        b = (h + half).min(hi);
+                        eb = excess(b).0;
+                    }
+                }
+                ((a, ea), (b, eb))
+            }
+            None => ((lo, excess(lo).0), (hi, excess(hi).0)),
+        };
+        if ea <= 0.0 || eb >= 0.0 {
             return None;
         }
-        let root = falling_root(excess, lo, hi, 1e-8);
-        let (_, mean, ripple) = self.settled_period(root, load_n);
-        Some(Orbit { mean_speed_m_s: mean, ripple_m_s: ripple })
+        // Regula falsi (Illinois) on the falling excess, stopped when a step moves v(0) by less
+        // than the tolerance: the last point evaluated is then the orbit, within it.
+        let tol = ROOT_TOLERANCE * w;
+        let mut last = f64::NAN;
+        let mut side = 0i8;
+        for i in 0..60 {
+            let mut m = (a * eb - b * ea) / (eb - ea);
+            if !(m > a && m < b) || i % 8 == 7 {
+                m = 0.5 * (a + b);
+            }
+            let (em, orbit) = excess(m);
+            if (m - last).abs() < tol || b - a < tol || em == 0.0 {
+                return Some((orbit, m));
+            }
+            last = m;
+            if em > 0.0 {
+                (a, ea) = (m, em);
+                if side == 1 {
+                    eb *= 0.5;
+                }
+                side = 1;
+            } else {
+                (b, eb) = (m, em);
+                if side == -1 {
+                    ea *= 0.5;
+                }
+                side = -1;
+            }
+        }
+        let m = 0.5 * (a + b);
+        Some((excess(m).1, m))
     }
 
     pub fn speed_at_load_m_s(&self, load_n: f64) -> Option<f64> {

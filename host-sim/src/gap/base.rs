@@ -1,0 +1,276 @@
+//! The contact model as the workflow's base (`[model] steady = "contact"`), fitted through a
+//! surrogate that it anchors.
+//!
+//! The contact model (`motor/steady_contact.rs`) is within a few per cent of the plant on every
+//! carriage, but one point costs 0.5–10 ms; the fits evaluate the model tens of thousands of
+//! times. So the fits run on the closed-form constant-speed model plus, per measured row, the
+//! contact model's difference from it at an anchor: `v(x) = v_closed(x) + (v_contact(x_a) −
+//! v_closed(x_a))`. At the anchor `x_a` this is the contact model exactly; the fit moves `x`, the
+//! anchor moves to the fit's end point, and the fit runs again until the anchored differences
+//! stop moving (output space mapping: at its fixed point the surrogate's prediction *is* the
+//! contact model's, so every residual, gap and χ² the workflow reports is the contact model's).
+//! What the surrogate borrows from the closed form is only the direction in which parameters move
+//! the speed; where that differs from the contact model's, the fixed point is near, not at, the
+//! contact model's least-squares optimum (the re-anchoring cannot settle further than that).
+//!
+//! The normal motion does not depend on μ, the tangential scale, the carriage or the guide, so it
+//! is solved once per preload, drive and normal force ratio and shared ([`ProfileCache`]).
+
+use super::fit::{fit as lm_fit, Data, Fit, Model};
+use crate::motor::effects::{model_speed_m_s, Condition};
+use crate::motor::params::{Params, SteadyModel};
+use crate::motor::plant::contact_spring;
+use crate::motor::steady::OperatingPoint;
+use crate::motor::steady_contact::{ContactModel, ContactProfile};
+use rayon::prelude::*;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+/// Steps tried per anchor move: the surrogate's step, then halved, down to 1/8 of it.
+const STEP_HALVINGS: usize = 4;
+
+/// Anchor moves at most per fit of the workflow's model: each costs `1 + n_params` contact-model evaluations of every
+/// row (two when the end point is refused and the midpoint tried).
+pub const MAX_ANCHORS: usize = 8;
+
+/// Anchor moves of a candidate effect's test fit: one, from the fit on the current model's
+/// anchor (a candidate's figures need the contact model's slopes, not its optimum to the last
+/// digit; the accepted one is refitted with [`MAX_ANCHORS`]).
+pub const CANDIDATE_ANCHORS: usize = 1;
+
+/// The anchors have settled when a move lowers the contact model's sum of squares by less than
+/// this share of it.
+pub const ANCHOR_TOLERANCE: f64 = 1e-3;
+
+/// Normal motions already solved, by (preload, drive voltage after the drive gain, frequency,
+/// normal force ratio, `kc`).
+#[derive(Debug, Default)]
+pub struct ProfileCache {
+    map: Mutex<HashMap<[u64; 5], Arc<ContactProfile>>>,
+    /// The last periodic orbit's start speed per measured condition (preload, voltage,
+    /// frequency, load, sense): where the next search, at other parameters, begins.
+    hints: Mutex<HashMap<[u64; 5], f64>>,
+}
+
+impl ProfileCache {
+    fn key(p: &Params, c: &Condition) -> [u64; 5] {
+        let voltage_v = c.voltage_v * p.effects.drive_gain(c.frequency_hz);
+        let (kc, _) = contact_spring(p, c.preload_n);
+        [c.preload_n, voltage_v, c.frequency_hz, p.stator.normal_force_ratio, kc].map(f64::to_bits)
+    }
+
+    fn profile(&self, p: &Params, c: &Condition) -> Arc<ContactProfile> {
+        let key = Self::key(p, c);
+        if let Some(found) = self.map.lock().ok().and_then(|m| m.get(&key).cloned()) {
+            return found;
+        }
+        let op =
+            OperatingPoint { preload_n: c.preload_n, voltage_v: c.voltage_v, frequency_hz: c.frequency_hz };
+        let solved = Arc::new(ContactProfile::new(p, op));
+        match self.map.lock() {
+            Ok(mut m) => m.entry(key).or_insert(solved).clone(),
+            Err(_) => solved,
+        }
+    }
+
+    /// The contact model's steady speed along the commanded sense (m/s); the closed form's where
+    /// the carriage has no periodic motion within reach (a load far past the stall).
+    pub fn speed_m_s(&self, p: &Params, c: &Condition) -> f64 {
+        let model = ContactModel::with_profile(p, self.profile(p, c), c.direction);
+        let hint_key =
+            [c.preload_n, c.voltage_v, c.frequency_hz, c.load_n, f64::from(c.direction)].map(f64::to_bits);
+        let hint = self.hints.lock().ok().and_then(|h| h.get(&hint_key).copied());
+        match model.orbit_near(c.load_n, hint) {
+            Some((orbit, v0)) => {
+                if let Ok(mut h) = self.hints.lock() {
+                    h.insert(hint_key, v0);
+                }
+                orbit.mean_speed_m_s
+            }
+            None => closed_speed_m_s(p, c),
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.map.lock().map(|m| m.len()).unwrap_or(0)
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// The contact base of a model: the shared normal motions and, at the anchor, the contact model's
+/// difference from the closed form per row with its derivatives.
+#[derive(Debug, Clone)]
+pub struct Anchor {
+    pub cache: Arc<ProfileCache>,
+    /// The parameters the anchor was taken at (a prefix of the model's: a candidate effect's
+    /// parameters are appended after them).
+    pub x: Arc<Vec<f64>>,
+    /// `v_contact − v_closed` at the anchor, per data row (m/s).
+    pub delta_m_s: Arc<Vec<f64>>,
+    /// `∂(v_contact − v_closed)/∂x_k` at the anchor, row-major per data row.
+    pub slope: Arc<Vec<Vec<f64>>>,
+}
+
+impl Anchor {
+    /// The surrogate's correction of row `i` at parameters `x`: first order about the anchor.
+    pub fn correction_m_s(&self, i: usize, x: &[f64]) -> f64 {
+        let d = self.delta_m_s.get(i).copied().unwrap_or(0.0);
+        let Some(g) = self.slope.get(i) else { return d };
+        d + g.iter().zip(x.iter().zip(self.x.iter())).map(|(g, (x, a))| g * (x - a)).sum::<f64>()
+    }
+}
+
+/// A parameter set as the closed-form part of the surrogate sees it: without `slider_inertia`,
+/// whose carriage the contact model already has.
+pub fn closed_params(p: &Params) -> Params {
+    let mut q = p.clone();
+    q.effects.slider_inertia = None;
+    q
+}
+
+fn closed_speed_m_s(p: &Params, c: &Condition) -> f64 {
+    if p.effects.slider_inertia.is_some() {
+        model_speed_m_s(&closed_params(p), c)
+    } else {
+        model_speed_m_s(p, c)
+    }
+}
+
+/// Whether a parameter file asks for the contact model as its base.
+pub fn wants_contact(p: &Params) -> bool {
+    p.model.steady == SteadyModel::Contact
+}
+
+/// A new anchor (all differences zero) for a base that selects the contact model, else `None`.
+pub fn new_anchor(p: &Params, data: &Data) -> Option<Anchor> {
+    wants_contact(p).then(|| Anchor {
+        cache: Arc::new(ProfileCache::default()),
+        x: Arc::new(Vec::new()),
+        delta_m_s: Arc::new(vec![0.0; data.len()]),
+        slope: Arc::new(Vec::new()),
+    })
+}
+
+/// Step of the anchor's forward differences: 1 % of a base factor (log scale) or of an effect
+/// parameter's range. The contact model's orbit is settled to 1e-6 of the foot's peak speed, so
+/// its difference quotients carry well under 1 % of noise at this step.
+const SLOPE_STEP: f64 = 0.01;
+
+/// `v_contact − v_closed` of `model` at parameters `x` for every data row (in parallel): one
+/// contact-model evaluation of each row.
+fn differences(model: &Model, cache: &ProfileCache, x: &[f64], data: &Data) -> Vec<f64> {
+    let p = model.params_at(x);
+    let q = closed_params(&p);
+    data.conds.par_iter().map(|c| cache.speed_m_s(&p, c) - model_speed_m_s(&q, c)).collect()
+}
+
+/// The anchor of `model` at `x`: the differences there and their slopes. Slopes for the first
+/// parameters are taken from `reuse` where it has them (an anchor at a nearby point: the slopes
+/// change slowly), the others by forward differences, one evaluation of every row each.
+fn anchored(
+    model: &Model,
+    cache: &Arc<ProfileCache>,
+    x: &[f64],
+    data: &Data,
+    reuse: Option<&Anchor>,
+) -> Anchor {
+    let delta = differences(model, cache, x, data);
+    let known = reuse.filter(|r| r.slope.len() == data.len()).map_or(0, |r| r.x.len().min(x.len()));
+    let mut slope: Vec<Vec<f64>> = match reuse {
+        Some(r) if known > 0 => r.slope.iter().map(|g| g[..known].to_vec()).collect(),
+        _ => vec![Vec::new(); data.len()],
+    };
+    for row in slope.iter_mut() {
+        row.resize(x.len(), 0.0);
+    }
+    let bounds = model.bounds();
+    for (k, &(lo, hi)) in bounds.iter().enumerate().take(x.len()).skip(known) {
+        let span = if k < super::fit::BASE_PARAMS { 1.0 } else { hi - lo };
+        let mut h = SLOPE_STEP * span.max(1e-9);
+        if x[k] + h > hi {
+            h = -h;
+        }
+        let mut xp = x.to_vec();
+        xp[k] += h;
+        for (row, (a, b)) in slope.iter_mut().zip(differences(model, cache, &xp, data).iter().zip(&delta)) {
+            row[k] = (a - b) / h;
+        }
+    }
+    Anchor {
+        cache: cache.clone(),
+        x: Arc::new(x.to_vec()),
+        delta_m_s: Arc::new(delta),
+        slope: Arc::new(slope),
+    }
+}
+
+/// `model` anchored at `x` with `anchor`'s slopes (the differences fresh: one evaluation of every
+/// row) and the contact model's fit there.
+fn moved_anchor(model: &Model, anchor: &Anchor, x: &[f64], data: &Data, rows: &[usize]) -> (Model, Fit) {
+    let mut m = model.clone();
+    m.anchor = Some(Anchor {
+        delta_m_s: Arc::new(differences(model, &anchor.cache, x, data)),
+        x: Arc::new(x.to_vec()),
+        ..anchor.clone()
+    });
+    let f = lm_fit(&m, data, rows, &[x.to_vec()], 0);
+    (m, f)
+}
+
+/// Fits `model` from `starts`; with a contact base, as a trust region around anchors: anchored
+/// at the first start, the surrogate is fitted, and the anchor moves to the fit's end point if
+/// the contact model's own sum of squares is lower there (else to the midpoint, else it stays),
+/// its slopes taken afresh before the next fit, until the sum of squares stops falling
+/// ([`ANCHOR_TOLERANCE`] of it, at most `max_anchors` moves). The surrogate matches the contact
+/// model's value and slope at each anchor, so this settles at a stationary point of the contact
+/// model's own least squares. With `reuse_slopes`, the first anchor takes the slopes of the
+/// parameters `model`'s own anchor has (a candidate effect appended to an anchored model: only
+/// the effect's are new). Returns the model with its final anchor (exact value, the slopes of
+/// the last point they were taken at) and the fit there, whose residuals are the contact model's.
+pub fn fit_anchored(
+    model: &Model,
+    data: &Data,
+    rows: &[usize],
+    starts: &[Vec<f64>],
+    max_iter: usize,
+    max_anchors: usize,
+    reuse_slopes: bool,
+) -> (Model, Fit) {
+    let Some(prior) = &model.anchor else {
+        return (model.clone(), lm_fit(model, data, rows, starts, max_iter));
+    };
+    let cache = prior.cache.clone();
+    let x0 = starts.first().cloned().unwrap_or_else(|| vec![0.0; model.n_params()]);
+    let mut m = model.clone();
+    m.anchor = Some(anchored(model, &cache, &x0, data, reuse_slopes.then_some(prior)));
+    let mut here = lm_fit(&m, data, rows, &[x0], 0);
+    let mut starts: Vec<Vec<f64>> = starts.to_vec();
+    for round in 1..=max_anchors {
+        let Some(anchor) = m.anchor.clone() else { break };
+        let end = lm_fit(&m, data, rows, &starts, max_iter).x;
+        // The step to the surrogate's optimum, shortened by halves while the contact model does
+        // not agree that it is an improvement.
+        let step: Vec<f64> = end.iter().zip(&here.x).map(|(a, b)| a - b).collect();
+        let Some((next_m, next)) = (0..STEP_HALVINGS)
+            .map(|k| {
+                let share = 0.5f64.powi(k as i32);
+                here.x.iter().zip(&step).map(|(x, d)| x + share * d).collect::<Vec<f64>>()
+            })
+            .map(|x| moved_anchor(&m, &anchor, &x, data, rows))
+            .find(|(_, f)| f.ssr < here.ssr)
+        else {
+            break;
+        };
+        let gain = (here.ssr - next.ssr) / here.ssr.max(1e-300);
+        (m, here) = (next_m, next);
+        if gain < ANCHOR_TOLERANCE || round == max_anchors {
+            break;
+        }
+        m.anchor = Some(anchored(&m, &cache, &here.x, data, None));
+        starts = vec![here.x.clone()];
+    }
+    (m, here)
+}
