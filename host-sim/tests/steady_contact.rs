@@ -173,12 +173,20 @@ fn the_model_with_the_contacts_timing_carries_the_effects_as_the_plant_does() {
             let plant_no_load = steady_speed_m_s(&p, f0, v, f, direction, 0.0);
             let plant = steady_speed_m_s(&p, f0, v, f, direction, load_n);
             let speed = model.speed_at_load_m_s(load_n).unwrap_or(f64::NAN);
-            ((speed - plant).abs() / plant_no_load.abs().max(1e-6), (k, f0, f, direction, load_n, speed, plant))
+            (
+                (speed - plant).abs() / plant_no_load.abs().max(1e-6),
+                (k, f0, f, direction, load_n, speed, plant),
+            )
         })
         .reduce(
             || (0.0, (0, 0.0, 0.0, 0, 0.0, 0.0, 0.0)),
             |a, b| if b.0 > a.0 || b.0.is_nan() { b } else { a },
         );
     eprintln!("worst {:.2} % at {:?}", worst.0 * 100.0, worst.1);
-    assert!(worst.0 < 0.05, "{:.1} % at (effect, N, Hz, sense, load, model, plant) {:?}", worst.0 * 100.0, worst.1);
+    assert!(
+        worst.0 < 0.05,
+        "{:.1} % at (effect, N, Hz, sense, load, model, plant) {:?}",
+        worst.0 * 100.0,
+        worst.1
+    );
 }
