@@ -186,12 +186,11 @@ fn test_candidates(
     progress: ProgressFn,
 ) -> Vec<Candidate> {
     let all = all_rows(data);
-    let n = data.len();
     let label = format!("round {round}: candidates scored and refitted");
     progress(&label, 0, todo.len());
     let done = std::sync::atomic::AtomicUsize::new(0);
     let cv_without = cv_rms(&state.model, data, &state.fit.x, opts.folds);
-    let mut cands: Vec<Candidate> = todo
+    let (mut cands, cheap_x): (Vec<Candidate>, Vec<Vec<f64>>) = todo
         .par_iter()
         .map(|&effect| {
             let sc = score(state, effect, data);
@@ -199,6 +198,7 @@ fn test_candidates(
             m.effects.push(effect);
             let starts = candidate_starts(&state.fit.x, effect, data);
             let f = lm_fit(&m, data, &all, &starts, 60);
+            let cheap = f.x.clone();
             // On a contact base that fit moved the effect the way the closed form does; one
             // anchor at its end point refits it on the contact model's own slopes, and the
             // likelihood ratio is between the contact model's sums of squares.
@@ -215,39 +215,42 @@ fn test_candidates(
             } else {
                 (m, f)
             };
-            let k = effect.fit_params().len() as f64;
-            let lr = (state.fit.ssr - f.ssr) / (state.s * state.s);
-            let cv_with = cv_rms(&m, data, &f.x, opts.folds);
-            let pred = m.predict(&f.x, data, &all);
-            let structure = axis_structure(
-                data,
-                &f.resid,
-                (state.s, state.noise_dof),
-                opts.signature_alpha,
-                effect.signature(),
-            );
             let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(&label, d, todo.len());
-            Candidate {
-                name: effect.to_string(),
-                effect,
-                round,
-                score: sc,
-                score_rank: 0,
-                lr,
-                delta_bic: lr - k * (n as f64).ln(),
-                cv_improvement: 1.0 - cv_with / cv_without.max(1e-300),
-                gap: data.gap(&pred),
-                consistency: ratio(&f, n, m.n_params(), state.s),
-                accepted: false,
-                partial: false,
-                structure,
-                params: effect_named_params(&m, &f, effect, state.s),
-                fit_x: f.x.clone(),
-                pred,
-            }
+            (candidate(state, effect, round, sc, &m, &f, cv_without, data, opts), cheap)
         })
-        .collect();
+        .unzip();
+    // On a contact base one anchor move leaves a candidate short of its optimum where the
+    // contact model's slopes change along the way (a drive gain that changes the impacts): the
+    // leading ones by likelihood ratio, those the decision is about, are fitted to the end.
+    if state.model.anchor.is_some() {
+        let mut by_lr: Vec<usize> = (0..cands.len()).collect();
+        by_lr.sort_by(|&a, &b| cands[b].lr.total_cmp(&cands[a].lr));
+        let lead: Vec<usize> = by_lr.into_iter().take(LEADING_CANDIDATES).collect();
+        let refined: Vec<(usize, Candidate)> = lead
+            .par_iter()
+            .map(|&i| {
+                let c = &cands[i];
+                let mut m = state.model.clone();
+                m.effects.push(c.effect);
+                let (m, f) = fit_anchored(
+                    &m,
+                    data,
+                    &all,
+                    std::slice::from_ref(&cheap_x[i]),
+                    60,
+                    LEADING_ANCHORS,
+                    true,
+                );
+                (i, candidate(state, c.effect, round, c.score, &m, &f, cv_without, data, opts))
+            })
+            .collect();
+        for (i, c) in refined {
+            if c.lr > cands[i].lr {
+                cands[i] = c;
+            }
+        }
+    }
     let mut order: Vec<usize> = (0..cands.len()).collect();
     order.sort_by(|&a, &b| cands[b].score.total_cmp(&cands[a].score));
     for (rank, &i) in order.iter().enumerate() {
@@ -255,6 +258,55 @@ fn test_candidates(
     }
     cands.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
     cands
+}
+
+/// Candidates a contact base fits to the end in each round, the leading ones by likelihood
+/// ratio after one anchor move, and the anchor moves they get (from the closed-form fit's end,
+/// as the first).
+const LEADING_CANDIDATES: usize = 2;
+const LEADING_ANCHORS: usize = 6;
+
+/// A candidate's figures from its refit `f` of `m` (the current model plus `effect`):
+/// likelihood ratio and ΔBIC against the current fit, cross-validated improvement, gap,
+/// consistency, the structure along its signature and its parameters.
+#[allow(clippy::too_many_arguments)]
+fn candidate(
+    state: &State,
+    effect: Effect,
+    round: usize,
+    score: f64,
+    m: &Model,
+    f: &Fit,
+    cv_without: f64,
+    data: &Data,
+    opts: &Options,
+) -> Candidate {
+    let all = all_rows(data);
+    let n = data.len();
+    let k = effect.fit_params().len() as f64;
+    let lr = (state.fit.ssr - f.ssr) / (state.s * state.s);
+    let cv_with = cv_rms(m, data, &f.x, opts.folds);
+    let pred = m.predict(&f.x, data, &all);
+    let structure =
+        axis_structure(data, &f.resid, (state.s, state.noise_dof), opts.signature_alpha, effect.signature());
+    Candidate {
+        name: effect.to_string(),
+        effect,
+        round,
+        score,
+        score_rank: 0,
+        lr,
+        delta_bic: lr - k * (n as f64).ln(),
+        cv_improvement: 1.0 - cv_with / cv_without.max(1e-300),
+        gap: data.gap(&pred),
+        consistency: ratio(f, n, m.n_params(), state.s),
+        accepted: false,
+        partial: false,
+        structure,
+        params: effect_named_params(m, f, effect, state.s),
+        fit_x: f.x.clone(),
+        pred,
+    }
 }
 
 /// The candidates (sorted by ΔBIC) that pay their way: ΔBIC and cross-validated improvement at
