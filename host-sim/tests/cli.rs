@@ -82,10 +82,28 @@ fn paper_json_lists_every_row_with_pass() {
     assert!(out.status.success());
     let rows: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
     assert!(rows.len() >= 15);
+    let ours = |name: &str| {
+        rows.iter().find(|r| r["name"] == name).and_then(|r| r["ours"].as_f64()).unwrap_or(f64::NAN)
+    };
     for r in &rows {
         assert!(r["name"].is_string() && r["paper"].is_string() && r["ours"].is_number());
         assert!(r["unit"].is_string() && r["tolerance"].is_string());
-        assert_eq!(r["pass"], serde_json::Value::Bool(true), "{r}");
+        // Each row judged here from its own tolerance text, not from the code's `pass` flag;
+        // the flag must agree.
+        let value = r["ours"].as_f64().unwrap();
+        let tolerance = r["tolerance"].as_str().unwrap();
+        let within = match tolerance_range(tolerance) {
+            Some((lo, hi)) => (lo..=hi).contains(&value),
+            None => match r["name"].as_str().unwrap() {
+                "no_load_speed_10n_vs_16n" => (value - 1.0).abs() <= 0.2,
+                "no_load_speed_25n_below_16n" => value < ours("no_load_speed_16n"),
+                "max_thrust_kc_2e9" => value > 4.0,
+                "max_thrust_kc_5e8_fixed_yc" => ours("max_thrust_kc_2e9") / value > 2.5,
+                other => panic!("row {other}: tolerance '{tolerance}' has no check here"),
+            },
+        };
+        assert!(within, "{r}");
+        assert_eq!(r["pass"], serde_json::Value::Bool(within), "{r}");
     }
     // The plant column is there where a row is measured on the plant.
     assert!(rows.iter().any(|r| r["plant"].is_number() && r["plant_pass"].is_boolean()));
@@ -358,4 +376,19 @@ fn client_commands_and_serve_flags_refuse_bad_input_on_one_line() {
         &["serve", "--tcp", "127.0.0.1:0", "--firmware-params", "/nonexistent/fw.toml"],
         "--firmware-params",
     );
+}
+
+/// The range of a tolerance text "a–b unit", or "… (a–b unit)" in parentheses, with SI-prefixed
+/// bounds scaled alike ("2.69–3.65 kHz" → 2690–3650): `None` for a text that is not a range.
+fn tolerance_range(text: &str) -> Option<(f64, f64)> {
+    let inner = match (text.find('('), text.rfind(')')) {
+        (Some(a), Some(b)) if b > a => &text[a + 1..b],
+        _ => text,
+    };
+    let inner = inner.split(',').next()?.trim();
+    let (lo, rest) = inner.split_once('–')?;
+    let mut parts = rest.split_whitespace();
+    let hi = parts.next()?;
+    let scale = if parts.next() == Some("kHz") { 1000.0 } else { 1.0 };
+    Some((lo.trim().parse::<f64>().ok()? * scale, hi.parse::<f64>().ok()? * scale))
 }
