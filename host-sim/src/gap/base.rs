@@ -44,9 +44,6 @@ pub const ANCHOR_TOLERANCE: f64 = 1e-3;
 #[derive(Debug, Default)]
 pub struct ProfileCache {
     map: Mutex<HashMap<[u64; 5], Arc<ContactProfile>>>,
-    /// The last periodic orbit's start speed per measured condition (preload, voltage,
-    /// frequency, load, sense): where the next search, at other parameters, begins.
-    hints: Mutex<HashMap<[u64; 5], f64>>,
 }
 
 impl ProfileCache {
@@ -73,18 +70,17 @@ impl ProfileCache {
     /// The contact model's steady speed along the commanded sense (m/s); the closed form's where
     /// the carriage has no periodic motion within reach (a load far past the stall).
     pub fn speed_m_s(&self, p: &Params, c: &Condition) -> f64 {
+        self.speed_near(p, c, None).0
+    }
+
+    /// [`Self::speed_m_s`] with the orbit searched first near `hint_v0` (the start speed of the
+    /// same row's orbit at nearby parameters); returns the speed and the orbit's start speed.
+    /// The hint only shortens the search: the orbit is the same to its tolerance.
+    pub fn speed_near(&self, p: &Params, c: &Condition, hint_v0: Option<f64>) -> (f64, Option<f64>) {
         let model = ContactModel::with_profile(p, self.profile(p, c), c.direction);
-        let hint_key =
-            [c.preload_n, c.voltage_v, c.frequency_hz, c.load_n, f64::from(c.direction)].map(f64::to_bits);
-        let hint = self.hints.lock().ok().and_then(|h| h.get(&hint_key).copied());
-        match model.orbit_near(c.load_n, hint) {
-            Some((orbit, v0)) => {
-                if let Ok(mut h) = self.hints.lock() {
-                    h.insert(hint_key, v0);
-                }
-                orbit.mean_speed_m_s
-            }
-            None => closed_speed_m_s(p, c),
+        match model.orbit_near(c.load_n, hint_v0) {
+            Some((orbit, v0)) => (orbit.mean_speed_m_s, Some(v0)),
+            None => (closed_speed_m_s(p, c), None),
         }
     }
 
@@ -109,6 +105,10 @@ pub struct Anchor {
     pub delta_m_s: Arc<Vec<f64>>,
     /// `∂(v_contact − v_closed)/∂x_k` at the anchor, row-major per data row.
     pub slope: Arc<Vec<Vec<f64>>>,
+    /// Each row's orbit start speed at the anchor (NaN: none): where this model's next
+    /// evaluations begin their search. Kept per anchor, not shared between models, so that a
+    /// fit's path does not depend on what other fits ran at the same time.
+    pub v0_m_s: Arc<Vec<f64>>,
 }
 
 impl Anchor {
@@ -148,6 +148,7 @@ pub fn new_anchor(p: &Params, data: &Data) -> Option<Anchor> {
         x: Arc::new(Vec::new()),
         delta_m_s: Arc::new(vec![0.0; data.len()]),
         slope: Arc::new(Vec::new()),
+        v0_m_s: Arc::new(Vec::new()),
     })
 }
 
@@ -159,11 +160,26 @@ pub fn new_anchor(p: &Params, data: &Data) -> Option<Anchor> {
 const SLOPE_STEP: f64 = 0.05;
 
 /// `v_contact − v_closed` of `model` at parameters `x` for every data row (in parallel): one
-/// contact-model evaluation of each row.
-fn differences(model: &Model, cache: &ProfileCache, x: &[f64], data: &Data) -> Vec<f64> {
+/// contact-model evaluation of each row, its orbit searched near `hints` (per row, NaN: none).
+/// Returns the differences and each row's orbit start speed.
+fn differences(
+    model: &Model,
+    cache: &ProfileCache,
+    x: &[f64],
+    data: &Data,
+    hints: &[f64],
+) -> (Vec<f64>, Vec<f64>) {
     let p = model.params_at(x);
     let q = closed_params(&p);
-    data.conds.par_iter().map(|c| cache.speed_m_s(&p, c) - model_speed_m_s(&q, c)).collect()
+    data.conds
+        .par_iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let hint = hints.get(i).copied().filter(|h| h.is_finite());
+            let (v, v0) = cache.speed_near(&p, c, hint);
+            (v - model_speed_m_s(&q, c), v0.unwrap_or(f64::NAN))
+        })
+        .unzip()
 }
 
 /// The anchor of `model` at `x`: the differences there and their slopes. Slopes for the first
@@ -175,8 +191,9 @@ fn anchored(
     x: &[f64],
     data: &Data,
     reuse: Option<&Anchor>,
+    hints: &[f64],
 ) -> Anchor {
-    let delta = differences(model, cache, x, data);
+    let (delta, v0) = differences(model, cache, x, data, hints);
     let known = reuse.filter(|r| r.slope.len() == data.len()).map_or(0, |r| r.x.len().min(x.len()));
     let mut slope: Vec<Vec<f64>> = match reuse {
         Some(r) if known > 0 => r.slope.iter().map(|g| g[..known].to_vec()).collect(),
@@ -194,7 +211,8 @@ fn anchored(
         }
         let mut xp = x.to_vec();
         xp[k] += h;
-        for (row, (a, b)) in slope.iter_mut().zip(differences(model, cache, &xp, data).iter().zip(&delta)) {
+        let (moved, _) = differences(model, cache, &xp, data, &v0);
+        for (row, (a, b)) in slope.iter_mut().zip(moved.iter().zip(&delta)) {
             row[k] = (a - b) / h;
         }
     }
@@ -203,6 +221,7 @@ fn anchored(
         x: Arc::new(x.to_vec()),
         delta_m_s: Arc::new(delta),
         slope: Arc::new(slope),
+        v0_m_s: Arc::new(v0),
     }
 }
 
@@ -210,9 +229,11 @@ fn anchored(
 /// row) and the contact model's fit there.
 fn moved_anchor(model: &Model, anchor: &Anchor, x: &[f64], data: &Data, rows: &[usize]) -> (Model, Fit) {
     let mut m = model.clone();
+    let (delta, v0) = differences(model, &anchor.cache, x, data, &anchor.v0_m_s);
     m.anchor = Some(Anchor {
-        delta_m_s: Arc::new(differences(model, &anchor.cache, x, data)),
+        delta_m_s: Arc::new(delta),
         x: Arc::new(x.to_vec()),
+        v0_m_s: Arc::new(v0),
         ..anchor.clone()
     });
     let f = lm_fit(&m, data, rows, &[x.to_vec()], 0);
@@ -244,7 +265,7 @@ pub fn fit_anchored(
     let cache = prior.cache.clone();
     let x0 = starts.first().cloned().unwrap_or_else(|| vec![0.0; model.n_params()]);
     let mut m = model.clone();
-    m.anchor = Some(anchored(model, &cache, &x0, data, reuse_slopes.then_some(prior)));
+    m.anchor = Some(anchored(model, &cache, &x0, data, reuse_slopes.then_some(prior), &prior.v0_m_s));
     let mut here = lm_fit(&m, data, rows, &[x0], 0);
     let mut starts: Vec<Vec<f64>> = starts.to_vec();
     for round in 1..=max_anchors {
@@ -292,7 +313,8 @@ pub fn fit_anchored(
         if gain < ANCHOR_TOLERANCE || round == max_anchors {
             break;
         }
-        m.anchor = Some(anchored(&m, &cache, &here.x, data, None));
+        let hints = m.anchor.as_ref().map(|a| a.v0_m_s.clone()).unwrap_or_default();
+        m.anchor = Some(anchored(&m, &cache, &here.x, data, None, &hints));
         starts = vec![here.x.clone()];
     }
     (m, here)

@@ -301,13 +301,6 @@ impl ContactModel {
         (v, sum / self.profile.contact_n.len() as f64, hi - lo, layer)
     }
 
-    /// The period from `v0` after one period that settles the layer.
-    fn settled_period(&self, v0: f64, load_n: f64) -> (f64, f64, f64) {
-        let (_, _, _, layer) = self.period(v0, Layer::default(), load_n);
-        let (end, mean, ripple, _) = self.period(v0, layer, load_n);
-        (end, mean, ripple)
-    }
-
     /// The periodic motion under a constant load opposing the drive; `None` when none exists in
     /// ±4× the foot's peak speed.
     pub fn orbit(&self, load_n: f64) -> Option<Orbit> {
@@ -322,8 +315,14 @@ impl ContactModel {
     pub fn orbit_near(&self, load_n: f64, hint_v0: Option<f64>) -> Option<(Orbit, f64)> {
         let w = self.foot_peak_m_s.abs().max(1e-9);
         // v(T) − v(0) and the period's mean speed and ripple, from v(0).
+        // The friction layer's state at the period's start, carried from one evaluation to the
+        // next: the first settles it over a period from rest; a later v(0) is near the last
+        // one, whose end state is then nearly its own periodic start (one period, not two).
+        let carried: std::cell::Cell<Option<Layer>> = std::cell::Cell::new(None);
         let excess = |v0: f64| {
-            let (end, mean, ripple) = self.settled_period(v0, load_n);
+            let start = carried.get().unwrap_or_else(|| self.period(v0, Layer::default(), load_n).3);
+            let (end, mean, ripple, layer) = self.period(v0, start, load_n);
+            carried.set(Some(layer));
             (end - v0, Orbit { mean_speed_m_s: mean, ripple_m_s: ripple })
         };
         let (lo, hi) = (-4.0 * w, 4.0 * w);
