@@ -417,7 +417,7 @@ pub(super) fn signature_tests(state: &State, data: &Data, opts: &Options) -> Vec
 
 /// An accepted effect stays in the model when it removes at least this share of the excess over
 /// noise that the final model without it leaves: "most of the excess". A hidden effect removes
-/// nearly all of what it causes (0.97–1.00 on the 1 and 5 kg carriages' recovery sets,
+/// nearly all of what it causes (0.95–1.00 on the 1 and 5 kg carriages' recovery sets,
 /// docs/model-gap.md); one that only soaks up part of another cause (the base model's own
 /// error) removes a minority of it, since that cause's structure is not its shape (0.00–0.02
 /// measured).

@@ -68,8 +68,7 @@ const MAX_PERIODS: usize = 600;
 /// friction layer passes a short, high impact differently from a low, long one.) Eight, not
 /// 32: the grid and band tests move by under 0.1 % of the plant's speed, and each orbit there
 /// costs a quarter; the gap workflow, which solves thousands of them, ran 1.5–3× faster (1 kg,
-/// 192 rows: 20–75 s, was 33–105 s) and recovered an amplifier pole at 2.49 kHz for 2.5 (was
-/// 2.78: its slopes were rougher over 32 bouncing periods).
+/// 192 rows).
 pub const UNSETTLED_PERIODS: usize = 8;
 
 type M7 = SMatrix<f64, 7, 7>;
