@@ -4,27 +4,24 @@
 //! The contact model (`motor/steady_contact.rs`) is within a few per cent of the plant on every
 //! carriage, but one point costs 0.5–10 ms; the fits evaluate the model tens of thousands of
 //! times. So the fits run on the closed-form constant-speed model plus, per measured row, the
-//! contact model's difference from it at an anchor: `v(x) = v_closed(x) + (v_contact(x_a) −
-//! v_closed(x_a))`. At the anchor `x_a` this is the contact model exactly; the fit moves `x`, the
-//! anchor moves to the fit's end point, and the fit runs again until the anchored differences
-//! stop moving (output space mapping: at its fixed point the surrogate's prediction *is* the
-//! contact model's, so every residual, gap and χ² the workflow reports is the contact model's).
-//! What the surrogate borrows from the closed form is only the direction in which parameters move
-//! the speed; where that differs from the contact model's, the fixed point is near, not at, the
-//! contact model's least-squares optimum (the re-anchoring cannot settle further than that).
+//! contact model's difference from it at an anchor and that difference's slopes:
+//! `v(x) = v_closed(x) + Δ(x_a) + ∂Δ/∂x·(x − x_a)`. At the anchor `x_a` this is the contact model
+//! in value and slope ([`fit_anchored`]); a trust region moves the anchor only where the contact
+//! model's own sum of squares falls, so the fits settle at a stationary point of the contact
+//! model's least squares, and every residual, gap and χ² the workflow reports is the contact
+//! model's. What the closed form lends is the curvature between anchors; where it misleads, a
+//! Levenberg–Marquardt step on the contact model's own slopes is tried instead.
 //!
 //! The normal motion does not depend on μ, the tangential scale, the carriage or the guide, so it
-//! is solved once per preload, drive and normal force ratio and shared ([`ProfileCache`]).
+//! is solved once per preload, drive and normal force ratio and shared ([`ProfileCache`], in
+//! `surrogate.rs` with the [`Anchor`] the fits read); each orbit search starts where the same
+//! row's orbit was at the model's anchor.
 
 use super::fit::{fit as lm_fit, Data, Fit, Model};
-use crate::motor::effects::{model_speed_m_s, Condition};
-use crate::motor::params::{Params, SteadyModel};
-use crate::motor::plant::contact_spring;
-use crate::motor::steady::OperatingPoint;
-use crate::motor::steady_contact::{ContactModel, ContactProfile};
+pub use super::surrogate::{closed_params, new_anchor, wants_contact, Anchor, ProfileCache};
+use crate::motor::effects::model_speed_m_s;
 use rayon::prelude::*;
-use std::collections::HashMap;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 
 /// Anchor moves at most per fit of the workflow's model: each costs `1 + n_params` contact-model evaluations of every
 /// row (two when the end point is refused and the midpoint tried).
@@ -38,119 +35,6 @@ pub const CANDIDATE_ANCHORS: usize = 1;
 /// The anchors have settled when a move lowers the contact model's sum of squares by less than
 /// this share of it.
 pub const ANCHOR_TOLERANCE: f64 = 1e-3;
-
-/// Normal motions already solved, by (preload, drive voltage after the drive gain, frequency,
-/// normal force ratio, `kc`).
-#[derive(Debug, Default)]
-pub struct ProfileCache {
-    map: Mutex<HashMap<[u64; 5], Arc<ContactProfile>>>,
-}
-
-impl ProfileCache {
-    fn key(p: &Params, c: &Condition) -> [u64; 5] {
-        let voltage_v = c.voltage_v * p.effects.drive_gain(c.frequency_hz);
-        let (kc, _) = contact_spring(p, c.preload_n);
-        [c.preload_n, voltage_v, c.frequency_hz, p.stator.normal_force_ratio, kc].map(f64::to_bits)
-    }
-
-    fn profile(&self, p: &Params, c: &Condition) -> Arc<ContactProfile> {
-        let key = Self::key(p, c);
-        if let Some(found) = self.map.lock().ok().and_then(|m| m.get(&key).cloned()) {
-            return found;
-        }
-        let op =
-            OperatingPoint { preload_n: c.preload_n, voltage_v: c.voltage_v, frequency_hz: c.frequency_hz };
-        let solved = Arc::new(ContactProfile::new(p, op));
-        match self.map.lock() {
-            Ok(mut m) => m.entry(key).or_insert(solved).clone(),
-            Err(_) => solved,
-        }
-    }
-
-    /// The contact model's steady speed along the commanded sense (m/s); the closed form's where
-    /// the carriage has no periodic motion within reach (a load far past the stall).
-    pub fn speed_m_s(&self, p: &Params, c: &Condition) -> f64 {
-        self.speed_near(p, c, None).0
-    }
-
-    /// [`Self::speed_m_s`] with the orbit searched first near `hint_v0` (the start speed of the
-    /// same row's orbit at nearby parameters); returns the speed and the orbit's start speed.
-    /// The hint only shortens the search: the orbit is the same to its tolerance.
-    pub fn speed_near(&self, p: &Params, c: &Condition, hint_v0: Option<f64>) -> (f64, Option<f64>) {
-        let model = ContactModel::with_profile(p, self.profile(p, c), c.direction);
-        match model.orbit_near(c.load_n, hint_v0) {
-            Some((orbit, v0)) => (orbit.mean_speed_m_s, Some(v0)),
-            None => (closed_speed_m_s(p, c), None),
-        }
-    }
-
-    pub fn len(&self) -> usize {
-        self.map.lock().map(|m| m.len()).unwrap_or(0)
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-}
-
-/// The contact base of a model: the shared normal motions and, at the anchor, the contact model's
-/// difference from the closed form per row with its derivatives.
-#[derive(Debug, Clone)]
-pub struct Anchor {
-    pub cache: Arc<ProfileCache>,
-    /// The parameters the anchor was taken at (a prefix of the model's: a candidate effect's
-    /// parameters are appended after them).
-    pub x: Arc<Vec<f64>>,
-    /// `v_contact − v_closed` at the anchor, per data row (m/s).
-    pub delta_m_s: Arc<Vec<f64>>,
-    /// `∂(v_contact − v_closed)/∂x_k` at the anchor, row-major per data row.
-    pub slope: Arc<Vec<Vec<f64>>>,
-    /// Each row's orbit start speed at the anchor (NaN: none): where this model's next
-    /// evaluations begin their search. Kept per anchor, not shared between models, so that a
-    /// fit's path does not depend on what other fits ran at the same time.
-    pub v0_m_s: Arc<Vec<f64>>,
-}
-
-impl Anchor {
-    /// The surrogate's correction of row `i` at parameters `x`: first order about the anchor.
-    pub fn correction_m_s(&self, i: usize, x: &[f64]) -> f64 {
-        let d = self.delta_m_s.get(i).copied().unwrap_or(0.0);
-        let Some(g) = self.slope.get(i) else { return d };
-        d + g.iter().zip(x.iter().zip(self.x.iter())).map(|(g, (x, a))| g * (x - a)).sum::<f64>()
-    }
-}
-
-/// A parameter set as the closed-form part of the surrogate sees it: without `slider_inertia`,
-/// whose carriage the contact model already has.
-pub fn closed_params(p: &Params) -> Params {
-    let mut q = p.clone();
-    q.effects.slider_inertia = None;
-    q
-}
-
-fn closed_speed_m_s(p: &Params, c: &Condition) -> f64 {
-    if p.effects.slider_inertia.is_some() {
-        model_speed_m_s(&closed_params(p), c)
-    } else {
-        model_speed_m_s(p, c)
-    }
-}
-
-/// Whether a parameter file asks for the contact model as its base.
-pub fn wants_contact(p: &Params) -> bool {
-    p.model.steady == SteadyModel::Contact
-}
-
-/// A new anchor (all differences zero) for a base that selects the contact model, else `None`.
-pub fn new_anchor(p: &Params, data: &Data) -> Option<Anchor> {
-    wants_contact(p).then(|| Anchor {
-        cache: Arc::new(ProfileCache::default()),
-        x: Arc::new(Vec::new()),
-        delta_m_s: Arc::new(vec![0.0; data.len()]),
-        slope: Arc::new(Vec::new()),
-        v0_m_s: Arc::new(Vec::new()),
-    })
-}
 
 /// Step of the anchor's forward differences: 5 % of a base factor (log scale) or of an effect
 /// parameter's range. Where the foot bounces, the impacts change pattern with the drive, and the

@@ -5,8 +5,8 @@
 //! parameters ([`Effect::fit_params`]). Levenberg–Marquardt with box bounds, forward-difference
 //! Jacobian.
 
-use crate::gap::base::{closed_params, Anchor};
 use crate::gap::measured_csv::MeasuredRow;
+use crate::gap::surrogate::{closed_params, new_anchor, Anchor};
 use crate::motor::effects::{model_speed_m_s, Condition, Effect, Effects};
 use crate::motor::params::Params;
 use nalgebra::{DMatrix, DVector};
@@ -202,7 +202,7 @@ const LOG_BOUND: f64 = 1.0;
 impl Model {
     /// The base parameters with no effects, anchored for `data` when they select the contact model.
     pub fn new(base: &Params, data: &Data) -> Self {
-        Model { base: base.clone(), effects: Vec::new(), anchor: crate::gap::base::new_anchor(base, data) }
+        Model { base: base.clone(), effects: Vec::new(), anchor: new_anchor(base, data.len()) }
     }
 
     pub fn n_params(&self) -> usize {

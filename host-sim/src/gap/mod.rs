@@ -24,6 +24,7 @@ pub mod measure;
 pub mod measured_csv;
 pub mod report;
 mod stages;
+pub mod surrogate;
 
 use crate::gap::measured_csv::MeasuredRow;
 use crate::motor::effects::{Axis, Condition, Effect, EFFECT_NAMES};
