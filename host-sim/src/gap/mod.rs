@@ -178,8 +178,9 @@ pub enum Tier {
     /// Explains most of the excess over noise and leaves its own signature conditions consistent
     /// with noise: added to the model.
     Named,
-    /// Explains most of the excess over noise but leaves structure above noise along one of its
-    /// signature conditions: added to the model (the gap shrinks with it), and the structure left
+    /// Explains most of the excess over noise, and most of the base model's, but leaves
+    /// structure above noise along one of its signature conditions: added to the model (the gap
+    /// shrinks with it), and the structure left
     /// is reported along its conditions: something else acts there too.
     NamedWithStructureLeft,
     /// Explains less than half of the excess over noise (it soaks up part of what another cause
@@ -649,7 +650,8 @@ pub fn analyze(
     // Name only the effects whose own signature conditions are consistent with noise in the final
     // fit; the others are partial candidates and leave the model, which is refitted.
     let signature_tests = stages::signature_tests(&selection.state, &data, opts);
-    let (verdicts, partial_candidates) = stages::decide_tiers(&mut selection, &signature_tests, &data, opts);
+    let (verdicts, partial_candidates) =
+        stages::decide_tiers(&mut selection, &signature_tests, before.ssr, &data, opts);
     let naming = stages::Naming { signature_tests, verdicts, partial_candidates };
     Ok(stages::build_report(&data, opts, before, selection, naming, not_identifiable, t0))
 }

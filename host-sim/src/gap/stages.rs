@@ -44,6 +44,8 @@ pub(super) fn checked_data(rows: &[MeasuredRow]) -> Result<Data> {
 pub(super) struct Before {
     /// Noise scale of the base fit (weighted units).
     pub s: f64,
+    /// Weighted sum of squares of the base fit.
+    pub ssr: f64,
     /// Residual variance / noise variance of the base fit.
     pub ratio: f64,
     /// Predicted speeds of the base fit (m/s) and their gap.
@@ -66,6 +68,7 @@ pub(super) fn calibrate_base(base: &Params, data: &Data, progress: ProgressFn) -
     let pred = base_model.predict(&base_fit.x, data, &all);
     let before = Before {
         s: s0,
+        ssr: base_fit.ssr,
         ratio: ratio(&base_fit, data.len(), BASE_PARAMS, s0),
         gap: data.gap(&pred),
         pred,
@@ -432,6 +435,7 @@ pub const MIN_SHARE_OF_EXCESS: f64 = 0.5;
 pub(super) fn decide_tiers(
     selection: &mut Selection,
     tests: &[SignatureTest],
+    base_ssr: f64,
     data: &Data,
     opts: &Options,
 ) -> (Vec<Verdict>, Vec<PartialCandidate>) {
@@ -441,6 +445,7 @@ pub(super) fn decide_tiers(
     let s = state.s;
     let excess = |f: &Fit, p: usize| f.ssr / (s * s) - n.saturating_sub(p) as f64;
     let full_excess = excess(&state.fit, state.model.n_params()).max(0.0);
+    let base_excess = base_ssr / (s * s) - n.saturating_sub(BASE_PARAMS) as f64;
     let verdicts: Vec<Verdict> = state
         .model
         .effects
@@ -457,12 +462,22 @@ pub(super) fn decide_tiers(
             let mut above: Vec<&AxisStructure> =
                 t.structure.iter().filter(|a| !a.consistent_with_noise).collect();
             above.sort_by(|a, b| b.chi2_per_dof.total_cmp(&a.chi2_per_dof));
+            // Structure left along its own conditions: named only as the main cause, most of
+            // the base model's excess (a second effect fitted to what the first leaves, e.g. a
+            // board's few curves, shares much of a small remainder and is not a cause).
+            let of_base = if base_excess > 0.0 {
+                ((excess_without - full_excess) / base_excess).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
             let tier = if share < MIN_SHARE_OF_EXCESS {
                 Tier::Partial
             } else if t.named {
                 Tier::Named
-            } else {
+            } else if of_base >= MIN_SHARE_OF_EXCESS {
                 Tier::NamedWithStructureLeft
+            } else {
+                Tier::Partial
             };
             Verdict {
                 effect: e.to_string(),
