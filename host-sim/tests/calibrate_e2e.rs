@@ -138,7 +138,11 @@ fn characterize_gap_calibrate_and_the_same_moves_run_better() {
     let fitted_params = Params::load(Path::new(&fitted)).expect("gap writes the fitted file");
     let rail = fitted_params.effects.rail_friction.expect("rail friction in the fitted file").rail_coulomb_n;
     // The hidden 0.4 N, partly absorbed by the recalibrated λ and ρ of one preload's data.
-    assert!((0.15..=0.6).contains(&rail), "fitted guide friction {rail} N for a hidden 0.4 N");
+    assert!(
+        (0.15..=0.6).contains(&rail),
+        "fitted guide friction {rail} N for a hidden 0.4 N; gap named {named:?}, verdicts {}",
+        gap["verdicts"]
+    );
     // μd comes back near the truth's 0.28 (the file believes 0.35).
     let mu = fitted_params.friction.mu_dynamic;
     assert!((mu - 0.28).abs() < 0.03, "fitted μd {mu}, truth 0.28");
