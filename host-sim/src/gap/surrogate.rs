@@ -54,14 +54,6 @@ impl ProfileCache {
             None => (closed_speed_m_s(p, c), None),
         }
     }
-
-    pub fn len(&self) -> usize {
-        self.map.lock().map(|m| m.len()).unwrap_or(0)
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
 }
 
 /// The contact base of a model: the shared normal motions and, at the anchor, the contact model's

@@ -3,19 +3,8 @@
 /// Root of a decreasing function with f(lo) ≥ 0 ≥ f(hi): Illinois (regula falsi) with a bisection
 /// guard, to a bracket of `rel_tol` of the interval.
 pub fn falling_root(f: impl Fn(f64) -> f64, lo: f64, hi: f64, rel_tol: f64) -> f64 {
-    let (fa, fb) = (f(lo), f(hi));
-    falling_root_from(f, (lo, fa), (hi, fb), rel_tol)
-}
-
-/// [`falling_root`] from a bracket whose ends are already evaluated: `(lo, f(lo))`, `(hi, f(hi))`.
-pub fn falling_root_from(
-    f: impl Fn(f64) -> f64,
-    (lo, fa): (f64, f64),
-    (hi, fb): (f64, f64),
-    rel_tol: f64,
-) -> f64 {
     let (mut a, mut b) = (lo, hi);
-    let (mut fa, mut fb) = (fa, fb);
+    let (mut fa, mut fb) = (f(a), f(b));
     if fa <= 0.0 {
         return a;
     }
