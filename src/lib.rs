@@ -9,6 +9,7 @@
 //! - [`controller`]: state machine, position control, supervision; one entry point `step`;
 //! - [`settings`]: every controller setting declared once (id, unit, range, default, storage);
 //! - [`storage`]: the flash parameter record (encode/decode with version and CRC);
+//! - [`param_store`]: that record in two flash pages, so a power cut never loses the last one;
 //! - [`recorder`]: the data recorder (`DRC`/`DRT`/`RTR`/`DRR?`): record tables filled each tick;
 //! - [`gcs`]: the PI GCS 2.0 command protocol (UART on the board, TCP or a pty in `host-sim serve`);
 //! - [`defaults`]: the firmware's default settings, with the baked motor table [`motor_table`].
@@ -23,6 +24,7 @@ pub mod generator;
 pub mod inertia;
 pub mod model;
 pub mod motor_table;
+pub mod param_store;
 pub mod pil_wire;
 pub mod profile;
 pub mod recorder;

@@ -89,10 +89,10 @@ mod board {
         // Parameters: flash record or defaults.
         let defaults = defaults::controller_config();
         let mut flash = params_flash::open(p.FLASH);
-        let (cfg, loaded) = params_flash::load(flash.as_mut(), &defaults, &mut || wdg.pet());
+        let (cfg, loaded) = params_flash::load(flash.as_mut(), &defaults);
         wdg.pet();
         match loaded {
-            Ok(()) => defmt::info!("parameters loaded from flash"),
+            Ok(page) => defmt::info!("parameters loaded from flash page {}", defmt::Debug2Format(&page)),
             Err(e) => defmt::info!("parameters: defaults ({})", defmt::Debug2Format(&e)),
         }
         let ctl = match Controller::new(cfg) {

@@ -1,7 +1,9 @@
 //! Parameters in flash: the core's record (`piezo_drive::storage`: version, length, CRC-32,
-//! range-checked) in the last 2 KiB page of the flash, 0x0807_F800 (page 127 of bank 2 in the
-//! STM32G474RE's factory dual-bank mode, DBANK = 1). `memory.x` keeps the firmware out of it, so
-//! all code and constants live in bank 1.
+//! range-checked) in two 2 KiB pages at the end of the flash, 0x0807_F000 and 0x0807_F800 (pages
+//! 126 and 127 of bank 2 in the STM32G474RE's factory dual-bank mode, DBANK = 1), kept by
+//! `piezo_drive::param_store`: a store writes the page that is not current and commits it last,
+//! so a power cut at any moment leaves the last good record loadable. `memory.x` keeps the
+//! firmware out of both pages, so all code and constants live in bank 1.
 //!
 //! Our own small flash driver (registers through the PAC), not embassy's: embassy 0.4 erases
 //! and programs inside a critical section, which would stop the control tick for the ~22 ms of
@@ -13,11 +15,11 @@
 //! checks again), the amplifier enable low and both buffer halves at the rest word (the tick
 //! does this on [`super::control::PARK_REQUEST`]); the enable comes back through the soft start.
 //!
-//! Reading at boot: a power cut during a store can leave a torn page whose words carry a double
-//! ECC error, which raises an NMI on the read. The NMI handler (`safety.rs`) asks
-//! [`param_page::ecc_error_while_reading`] whether the error lies in this page during a read; if so it clears
-//! the flag and returns, the read reports [`ReadError::Ecc`] and the boot code erases the page
-//! and runs on defaults. The independent watchdog is already running by then.
+//! Reading: a power cut during a store can leave a torn double word that carries a double ECC
+//! error, which raises an NMI on the read. The NMI handler (`safety.rs`) asks
+//! [`param_page::ecc_error_while_reading`] whether the error lies in these pages during a read;
+//! if so it clears the flag and returns, and the read reports [`FlashFault::Ecc`]. Such a page is
+//! never the current one (its commit word is written last); the next store erases it.
 //!
 //! If the option bytes say single-bank (DBANK = 0, 4 KiB pages) the layout does not match: the
 //! firmware skips the flash, runs on defaults and refuses `WPA` (the README says how to set
@@ -32,17 +34,24 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Timer};
 use piezo_drive::controller::ControllerConfig;
-use piezo_drive::storage::{self, StorageError, RECORD_LEN};
+use piezo_drive::param_store::{self, FlashFault, Page, PageState, ParamPages, StoreError, WRITE_SIZE};
+use piezo_drive::storage::StorageError;
 
 use super::control::{PARKED_TICKS, PARK_REQUEST};
 use super::param_page::{self, BANK2_OFFSET, FLASH_BASE, PARAM_OFFSET, PARAM_PAGE_SIZE};
 
-/// The page within bank 2 (erase page number, PNB with BKER = 1).
-const PARAM_PAGE_IN_BANK: u8 = ((PARAM_OFFSET - BANK2_OFFSET) / PARAM_PAGE_SIZE) as u8;
-/// Flash write unit (a double word).
-const WRITE_SIZE: usize = 8;
-/// The record padded to the write unit.
-const PADDED_LEN: usize = RECORD_LEN.div_ceil(WRITE_SIZE) * WRITE_SIZE;
+/// A page's offset from the start of flash.
+fn page_offset(page: Page) -> u32 {
+    match page {
+        Page::A => PARAM_OFFSET,
+        Page::B => PARAM_OFFSET + PARAM_PAGE_SIZE,
+    }
+}
+
+/// A page's number within bank 2 (erase page number, PNB with BKER = 1): 126 and 127.
+fn page_in_bank(page: Page) -> u8 {
+    ((page_offset(page) - BANK2_OFFSET) / PARAM_PAGE_SIZE) as u8
+}
 /// FLASH_SR error flags (OPERR, PROGERR, WRPERR, PGAERR, SIZERR, PGSERR, MISERR, FASTERR, RDERR,
 /// OPTVERR) and EOP: all write-1-to-clear.
 const SR_ERRORS: u32 = 0xC3FA;
@@ -69,35 +78,35 @@ pub fn take_store_failure() -> bool {
     STORE_STATE.compare_exchange(3, 5, Ordering::Relaxed, Ordering::Relaxed).is_ok()
 }
 
+/// Why the flash itself failed (logged; the store reports [`FlashFault::Failed`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum FlashError {
     /// FLASH_SR error flags after the operation.
     Status(u32),
     Timeout,
+}
+
+/// Why a store was not made, beyond the store's own errors.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum NotStored {
     /// The drive did not park (the tick is not running?).
     NotParked,
     /// The controller is not idle.
     NotIdle,
-    Verify,
-    /// A setting outside its range (the record would not load back).
-    OutOfRange,
+    Store(StoreError),
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ReadError {
-    /// A double ECC error in the page (a torn write).
-    Ecc,
-}
-
-/// The parameter page.
+/// The two parameter pages.
 pub struct ParamFlash {
     _flash: Peri<'static, FLASH>,
+    /// A read hit a double ECC error since boot (a store torn by a power cut).
+    ecc_seen: bool,
 }
 
 /// The flash, when the option bytes match the layout (dual bank).
 pub fn open(flash: Peri<'static, FLASH>) -> Option<ParamFlash> {
     if pac::FLASH.optr().read().dbank() {
-        Some(ParamFlash { _flash: flash })
+        Some(ParamFlash { _flash: flash, ecc_seen: false })
     } else {
         STORE_STATE.store(4, Ordering::Relaxed);
         None
@@ -139,31 +148,20 @@ fn flush_data_cache() {
     pac::FLASH.acr().modify(|w| w.set_dcen(true));
 }
 
-impl ParamFlash {
-    /// Reads the start of the page. A double ECC error in it is reported, not fatal.
-    pub fn read(&mut self, buf: &mut [u8]) -> Result<(), ReadError> {
-        let base = (FLASH_BASE + PARAM_OFFSET) as *const u8;
-        let ecc_hit = param_page::guarded_read(|| {
-            for (i, b) in buf.iter_mut().take(PARAM_PAGE_SIZE as usize).enumerate() {
-                // SAFETY: inside the 2 KiB parameter page, memory-mapped flash.
-                *b = unsafe { base.add(i).read_volatile() };
-            }
-        });
-        if ecc_hit {
-            Err(ReadError::Ecc)
-        } else {
-            Ok(())
-        }
-    }
+fn flash_fault(e: FlashError) -> FlashFault {
+    defmt::error!("parameter flash: {}", e);
+    FlashFault::Failed
+}
 
-    fn start_erase(&mut self) {
+impl ParamFlash {
+    fn start_erase(&mut self, page: Page) {
         clear_status();
         unlock();
         pac::FLASH.cr().modify(|w| {
             w.set_pg(false);
             w.set_per(true);
             w.set_bker(true);
-            w.set_pnb(PARAM_PAGE_IN_BANK);
+            w.set_pnb(page_in_bank(page));
         });
         pac::FLASH.cr().modify(|w| w.set_strt(true));
     }
@@ -179,22 +177,13 @@ impl ParamFlash {
         }
     }
 
-    /// Erases the page, busy-waiting (boot only, before the tick and the WWDG run; the IWDG
-    /// allows 50 ms and the erase takes ~22 ms).
-    pub fn erase_blocking(&mut self) -> Result<(), FlashError> {
-        while busy() {}
-        self.start_erase();
-        while busy() {}
-        self.finish()
-    }
-
-    /// Erases the page without blocking anything: polls the busy flag between 1 ms sleeps.
-    async fn erase(&mut self) -> Result<(), FlashError> {
+    /// Erases a page without blocking anything: polls the busy flag between 1 ms sleeps.
+    async fn erase_page(&mut self, page: Page) -> Result<(), FlashError> {
         let mut waited = Duration::from_ticks(0);
         while busy() {
             Timer::after_millis(1).await;
         }
-        self.start_erase();
+        self.start_erase(page);
         while busy() {
             if waited > ERASE_TIMEOUT {
                 lock();
@@ -206,27 +195,31 @@ impl ParamFlash {
         self.finish()
     }
 
-    /// Programs `data` (a multiple of 8 bytes) at the start of the erased page, one double word
-    /// at a time (~85 µs each), yielding between them.
-    async fn program(&mut self, data: &[u8; PADDED_LEN]) -> Result<(), FlashError> {
+    /// Programs `data` at `offset` of an erased page, one double word at a time (~85 µs each),
+    /// yielding between them.
+    async fn program_at(&mut self, page: Page, offset: usize, data: &[u8]) -> Result<(), FlashError> {
         clear_status();
         unlock();
         pac::FLASH.cr().modify(|w| {
             w.set_per(false);
             w.set_pg(true);
         });
-        let base = (FLASH_BASE + PARAM_OFFSET) as *mut u32;
-        let mut words = [u32::MAX; PADDED_LEN / 4];
-        for (w, c) in words.iter_mut().zip(data.chunks_exact(4)) {
-            *w = u32::from_le_bytes(<[u8; 4]>::try_from(c).unwrap_or([0xFF; 4]));
-        }
-        for (i, pair) in words.chunks_exact(2).enumerate() {
-            let &[lo, hi] = pair else { break };
-            // SAFETY: inside the parameter page, word-aligned; PG is set, so these writes
-            // program the double word (first word, then second, back to back).
+        let base = (FLASH_BASE + page_offset(page)) as *mut u32;
+        let first_word = offset / 4;
+        for (i, chunk) in data.chunks_exact(WRITE_SIZE).enumerate() {
+            let word = |at: usize| {
+                let b = chunk.get(at..at + 4).and_then(|b| <[u8; 4]>::try_from(b).ok());
+                u32::from_le_bytes(b.unwrap_or([0xFF; 4]))
+            };
+            let at = first_word + 2 * i;
+            if (at + 2) * 4 > PARAM_PAGE_SIZE as usize {
+                break;
+            }
+            // SAFETY: inside the parameter page (checked above), word-aligned; PG is set, so
+            // these writes program the double word (first word, then second, back to back).
             unsafe {
-                base.add(2 * i).write_volatile(lo);
-                base.add(2 * i + 1).write_volatile(hi);
+                base.add(at).write_volatile(word(0));
+                base.add(at + 1).write_volatile(word(4));
             }
             cortex_m::asm::dsb();
             while busy() {
@@ -240,33 +233,57 @@ impl ParamFlash {
     }
 }
 
-/// Boot parameters: the stored record if valid, else `defaults` (and why). A torn page (double
-/// ECC error) is erased so the next boot reads it cleanly; `feed` keeps the watchdog quiet.
+impl ParamPages for ParamFlash {
+    /// Reads the start of a page. A double ECC error in it is reported, not fatal.
+    fn read(&mut self, page: Page, buf: &mut [u8]) -> Result<(), FlashFault> {
+        let base = (FLASH_BASE + page_offset(page)) as *const u8;
+        let ecc_hit = param_page::guarded_read(|| {
+            for (i, b) in buf.iter_mut().take(PARAM_PAGE_SIZE as usize).enumerate() {
+                // SAFETY: inside the 2 KiB parameter page, memory-mapped flash.
+                *b = unsafe { base.add(i).read_volatile() };
+            }
+        });
+        if ecc_hit {
+            self.ecc_seen = true;
+            Err(FlashFault::Ecc)
+        } else {
+            Ok(())
+        }
+    }
+
+    async fn erase(&mut self, page: Page) -> Result<(), FlashFault> {
+        self.erase_page(page).await.map_err(flash_fault)
+    }
+
+    async fn program(&mut self, page: Page, offset: usize, data: &[u8]) -> Result<(), FlashFault> {
+        self.program_at(page, offset, data).await.map_err(flash_fault)
+    }
+}
+
+/// Boot parameters: the newest committed record of the two pages, else `defaults` (and why).
+/// A page torn by a power cut (double ECC error) is logged and recorded as a fault; it is never
+/// the current page, and the next store erases it.
 pub fn load(
     flash: Option<&mut ParamFlash>,
     defaults: &ControllerConfig,
-    feed: &mut dyn FnMut(),
-) -> (ControllerConfig, Result<(), StorageError>) {
+) -> (ControllerConfig, Result<Page, StorageError>) {
     let Some(flash) = flash else { return (*defaults, Err(StorageError::NoRecord)) };
-    let mut bytes = [0u8; RECORD_LEN];
-    if flash.read(&mut bytes) == Err(ReadError::Ecc) {
-        defmt::error!("parameter page: double ECC error (torn write?): erasing it, running on defaults");
+    let (cfg, states, current) = param_store::load(flash, defaults);
+    for (page, state) in Page::BOTH.iter().zip(states.iter()) {
+        if *state == PageState::Damaged {
+            defmt::warn!(
+                "parameter page {}: damaged (a store cut off?); not used",
+                defmt::Debug2Format(page)
+            );
+        }
+    }
+    if flash.ecc_seen {
         super::safety::record_fault(
             piezo_drive::safety::fault_record::FaultKind::FlashEcc,
             [pac::FLASH.eccr().read().0, 0, 0, 0, 0, 0, 0, 0],
         );
-        feed();
-        match flash.erase_blocking() {
-            Ok(()) => defmt::info!("parameter page erased"),
-            Err(e) => defmt::error!("parameter page erase failed: {}", e),
-        }
-        feed();
-        return (*defaults, Err(StorageError::NoRecord));
     }
-    match storage::decode(&bytes, defaults) {
-        Ok(cfg) => (cfg, Ok(())),
-        Err(e) => (*defaults, Err(e)),
-    }
+    (cfg, current)
 }
 
 /// Queues `cfg` for storing; false when there is no usable flash. A copy and a signal: called
@@ -288,12 +305,12 @@ fn controller_idle() -> bool {
 }
 
 /// Parks the drive (enable low, rest words in both halves) and waits until the tick confirms.
-async fn park() -> Result<(), FlashError> {
+async fn park() -> Result<(), NotStored> {
     PARK_REQUEST.store(true, Ordering::SeqCst);
     let mut waited = Duration::from_ticks(0);
     while PARKED_TICKS.load(Ordering::Relaxed) < super::PARK_TICKS {
         if waited > PARK_TIMEOUT {
-            return Err(FlashError::NotParked);
+            return Err(NotStored::NotParked);
         }
         Timer::after_micros(200).await;
         waited += Duration::from_micros(200);
@@ -303,48 +320,37 @@ async fn park() -> Result<(), FlashError> {
 
 async fn store(
     flash: &mut ParamFlash,
-    record: &[u8; RECORD_LEN],
+    cfg: &ControllerConfig,
     defaults: &ControllerConfig,
-) -> Result<(), FlashError> {
+) -> Result<Page, NotStored> {
     if !controller_idle() {
-        return Err(FlashError::NotIdle);
+        return Err(NotStored::NotIdle);
     }
     park().await?;
     // Idle still (a command may have come in while parking).
     if !controller_idle() {
-        return Err(FlashError::NotIdle);
+        return Err(NotStored::NotIdle);
     }
-    let mut padded = [0xFFu8; PADDED_LEN];
-    for (d, s) in padded.iter_mut().zip(record.iter()) {
-        *d = *s;
-    }
-    flash.erase().await?;
-    flash.program(&padded).await?;
-    let mut back = [0u8; RECORD_LEN];
-    let read = flash.read(&mut back);
-    if read.is_ok() && back == *record && storage::decode(&back, defaults).is_ok() {
-        Ok(())
-    } else {
-        Err(FlashError::Verify)
-    }
+    param_store::store(flash, cfg, defaults).await.map_err(NotStored::Store)
 }
 
 #[embassy_executor::task]
 pub async fn flash_task(mut flash: ParamFlash, defaults: ControllerConfig) {
     loop {
         let cfg = REQUEST.wait().await;
-        let result = match storage::validate(&cfg) {
-            Ok(()) => store(&mut flash, &storage::encode(&cfg), &defaults).await,
-            Err(_) => Err(FlashError::OutOfRange),
-        };
+        let result = store(&mut flash, &cfg, &defaults).await;
         PARK_REQUEST.store(false, Ordering::SeqCst);
         match result {
-            Ok(()) => {
-                defmt::info!("parameters stored at 0x{:08x}", FLASH_BASE + PARAM_OFFSET);
+            Ok(page) => {
+                defmt::info!(
+                    "parameters stored in page {} at 0x{:08x}",
+                    defmt::Debug2Format(&page),
+                    FLASH_BASE + page_offset(page)
+                );
                 STORE_STATE.store(2, Ordering::Relaxed);
             }
             Err(e) => {
-                defmt::error!("parameter store failed: {}", e);
+                defmt::error!("parameter store failed: {}", defmt::Debug2Format(&e));
                 STORE_STATE.store(3, Ordering::Relaxed);
             }
         }
