@@ -8,10 +8,10 @@ use piezo_drive::controller::{Controller, Inputs, DAC_SAMPLES_PER_STEP};
 use piezo_drive::defaults::controller_config;
 use piezo_drive::gcs::{Board, Gcs, LoopStats, Pending, Reply};
 use piezo_drive::generator::QuadratureGenerator;
-use piezo_drive::recorder::{trigger, Recorder, DEPTH};
+use piezo_drive::recorder::{trigger, DEPTH};
 use piezo_drive::Fx;
 
-use crate::{calibrate, counts, Stat};
+use crate::{calibrate, counts, Stat, RECORDER};
 
 static mut HALF: [u32; 2 * DAC_SAMPLES_PER_STEP] = [0; 2 * DAC_SAMPLES_PER_STEP];
 
@@ -236,8 +236,6 @@ pub fn hot_paths() {
     thrust.print("ThrustPoint::thrust_n (one model evaluation)", k);
     gcs_lock_times(&ctl, k);
 }
-
-static RECORDER: Recorder = Recorder::new();
 
 /// The data recorder's share of the tick (`Recorder::sample` after the step, as the firmware's
 /// tick calls it): no table recording, then all eight recording a point every tick (`RTR 1`,
