@@ -162,10 +162,36 @@ impl SharedController for Metered<'_> {
     }
 }
 
+/// A point for the recorder (kept out of `pil`'s loop, whose tick code stays as it was).
+#[inline(never)]
+fn record(ctl: &Controller) {
+    RECORDER.sample(ctl);
+}
+
 static mut GCS_REPLY: piezo_drive::gcs::Reply = piezo_drive::gcs::Reply::new();
+static mut GCS: Option<Gcs> = None;
+static mut GCS_BYTES: [u8; GCS_MAX_BYTES] = [0; GCS_MAX_BYTES];
+
+/// Reads a GCS frame's `len` command bytes, runs them and answers with the report; false when
+/// the host has gone. Out of line, so that `pil`'s tick code is what it was without it.
+#[inline(never)]
+fn gcs_frame(fd_in: usize, fd_out: usize, len: usize, ctl: &mut Controller, k: f32) -> bool {
+    // SAFETY: single-threaded; the only references to these statics.
+    let (gcs, bytes) = unsafe {
+        (
+            (*core::ptr::addr_of_mut!(GCS)).get_or_insert_with(Gcs::new),
+            &mut (&mut *core::ptr::addr_of_mut!(GCS_BYTES))[..len.min(GCS_MAX_BYTES)],
+        )
+    };
+    if !read_exact(fd_in, bytes) {
+        return false;
+    }
+    let report = run_gcs(gcs, ctl, bytes, k);
+    write_all(fd_out, &pil_wire::encode_gcs_report(&report))
+}
 
 /// One GCS frame's bytes through the protocol, as the firmware's UART task runs them.
-fn gcs_frame(gcs: &mut Gcs, ctl: &mut Controller, bytes: &[u8], k: f32) -> GcsReport {
+fn run_gcs(gcs: &mut Gcs, ctl: &mut Controller, bytes: &[u8], k: f32) -> GcsReport {
     // SAFETY: single-threaded; the only reference to GCS_REPLY.
     let reply = unsafe { &mut *core::ptr::addr_of_mut!(GCS_REPLY) };
     reply.clear();
@@ -199,16 +225,9 @@ fn pil(fd_in: usize, fd_out: usize, k: f32) {
     };
     let mut frame = [0u8; TICK_BYTES];
     let mut half = 0usize;
-    let mut gcs = Gcs::new();
-    let mut line = [0u8; GCS_MAX_BYTES];
     while read_exact(fd_in, &mut frame) {
         if let Some(len) = pil_wire::decode_gcs_header(&frame) {
-            let bytes = &mut line[..len];
-            if !read_exact(fd_in, bytes) {
-                return;
-            }
-            let report = gcs_frame(&mut gcs, &mut ctl, bytes, k);
-            if !write_all(fd_out, &pil_wire::encode_gcs_report(&report)) {
+            if !gcs_frame(fd_in, fd_out, len, &mut ctl, k) {
                 return;
             }
             continue;
@@ -243,7 +262,7 @@ fn pil(fd_in: usize, fd_out: usize, k: f32) {
             None => 0,
         };
         // The firmware's tick records after the step; here outside the tick's count.
-        RECORDER.sample(&ctl);
+        record(&ctl);
         let Some(outputs) = out else { return };
         let reply = Reply {
             outputs,
