@@ -1,17 +1,23 @@
 //! What runs while the board holds the controller's lock (on the firmware: the control tick
 //! masked) for each command: [`Gcs::execute_shared`]. The firmware's UART task, `host-sim serve`
-//! and the processor-in-the-loop image (`tools/pil`, which counts the instructions of every
-//! locked section: `host-sim pil --gcs-locks`) all run commands through it, so what is measured
-//! is what the board runs.
+//! (through [`Gcs::execute`]) and the processor-in-the-loop image (`tools/pil`, which counts the
+//! instructions of every locked section: `host-sim pil --gcs-locks`) all run commands through
+//! it, so what is measured is what the board runs.
 //!
-//! Three shapes, by command (see [`Gcs::is_read_only`], [`Gcs::is_settings_only`]):
-//! - a query (`…?`, #5, #7) copies the controller under the lock and is answered from the copy
-//!   without it;
-//! - a settings command (`SPA`, `VEL`, `ACC`, `DEC`) is parsed and checked on a copy taken
-//!   under the lock, and only `Controller::set_config` runs under it again;
-//! - every other command runs whole under the lock.
+//! The line is split and its command looked up first, without the lock. Then, by command
+//! (see [`Gcs::is_read_only`], [`Gcs::is_settings_only`]):
+//! - a query (`…?`, #5, #7, and what only latches an error) takes a [`Snapshot`] under the
+//!   lock (the settings and the state's scalars, not the 3 KiB controller) and is answered from
+//!   it without the lock;
+//! - a settings command (`SPA`, `VEL`, `ACC`, `DEC`) takes the same snapshot, is parsed and
+//!   checked on a copy of its settings without the lock, and only `Controller::set_config` runs
+//!   under it again (when the settings changed);
+//! - every other command runs under the lock (its handler: check and act; #24).
 
-use super::{Board, Gcs, Pending, Reply};
+use super::commands::{Parsed, Shape};
+use super::framing::Out;
+use super::snapshot::Snapshot;
+use super::{error, Board, Gcs, Pending, Reply};
 use crate::controller::Controller;
 
 /// The controller as a board shares it with its control tick.
@@ -32,8 +38,8 @@ impl SharedController for Unshared<'_> {
 
 impl Gcs {
     /// Executes `pending` against a shared controller, locking it as little as the command
-    /// allows (the module's three shapes), and appends the reply bytes (possibly none). Nothing
-    /// is executed and nothing answered when the controller cannot be locked.
+    /// allows (see the module), and appends the reply bytes (possibly none). Nothing is
+    /// executed and nothing answered when the controller cannot be locked.
     pub fn execute_shared(
         &mut self,
         pending: &Pending,
@@ -41,25 +47,40 @@ impl Gcs {
         board: &mut dyn Board,
         reply: &mut Reply,
     ) {
-        if Self::is_read_only(pending) {
-            // The copy is taken with the tick held off; the reply is formatted without.
-            if let Some(mut copy) = shared.lock(|ctl| ctl.clone()) {
-                self.execute(pending, &mut copy, board, reply);
+        let parsed = Parsed::of(pending);
+        let thrust = parsed.needs_thrust();
+        match parsed.shape() {
+            Shape::Query => {
+                let Some(snap) = shared.lock(|ctl| Snapshot::take(ctl, thrust)) else { return };
+                self.run_query(&parsed, &snap, board, Out::new(reply));
             }
-        } else if Self::is_settings_only(pending) {
-            // Parsed and checked on a copy; the real controller only takes the new settings.
-            if let Some(mut copy) = shared.lock(|ctl| ctl.clone()) {
-                self.execute(pending, &mut copy, board, reply);
-                let new = *copy.config();
-                shared.lock(|ctl| {
-                    if *ctl.config() != new {
-                        // Cannot fail: the copy accepted the same settings from the same ones.
-                        let _ = ctl.set_config(new);
+            Shape::Settings => {
+                let Some(snap) = shared.lock(|ctl| Snapshot::take(ctl, thrust)) else { return };
+                let start = reply.len();
+                if let Some(new) = self.run_settings(&parsed, &snap, board, Out::new(reply)) {
+                    // The same checks passed on the same settings (only commands change them,
+                    // and they run here one at a time): this cannot fail.
+                    if shared.lock(|ctl| ctl.set_config(new)).is_some_and(|r| r.is_err()) {
+                        reply.truncate(start);
+                        self.error = error::PARAM_OUT_OF_RANGE;
                     }
-                });
+                }
             }
-        } else {
-            shared.lock(|ctl| self.execute(pending, ctl, board, reply));
+            Shape::Locked => {
+                shared.lock(|ctl| self.run_locked(&parsed, ctl, board, Out::new(reply)));
+            }
         }
+    }
+
+    /// Executes `pending` against a controller no tick shares and appends the reply bytes
+    /// (possibly none): [`Gcs::execute_shared`] with [`Unshared`].
+    pub fn execute(
+        &mut self,
+        pending: &Pending,
+        ctl: &mut Controller,
+        board: &mut dyn Board,
+        reply: &mut Reply,
+    ) {
+        self.execute_shared(pending, &mut Unshared(ctl), board, reply);
     }
 }

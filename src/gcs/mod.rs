@@ -29,6 +29,7 @@ mod motion;
 pub mod num;
 pub mod params;
 mod settings;
+pub mod snapshot;
 mod state;
 
 pub use commands::{Command, COMMANDS};
