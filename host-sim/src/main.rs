@@ -414,13 +414,14 @@ fn cmd_pil_locks(params: &Params, args: &PilArgs) -> Result<()> {
             "GCS commands on the emulated M4: instructions with the controller locked (the tick held off)"
         );
         println!(
-            "{:<8} {:<34} {:>7}  {:<16} {:>9} {:>5}",
-            "command", "sent", "locked", "sections", "whole", "error"
+            "{:<8} {:<34} {:>7}  {:<32} {:>9} {:>5}",
+            "command", "sent", "locked", "locked sections", "whole", "error"
         );
         for l in &r.locks {
-            let sections: Vec<String> = l.sections.iter().map(u32::to_string).collect();
+            let sections: Vec<String> =
+                l.sections.iter().map(|s| format!("{} {}", s.what, s.instructions)).collect();
             println!(
-                "{:<8} {:<34} {:>7}  {:<16} {:>9} {:>5}",
+                "{:<8} {:<34} {:>7}  {:<32} {:>9} {:>5}",
                 l.command,
                 l.line,
                 l.instructions,
@@ -430,8 +431,11 @@ fn cmd_pil_locks(params: &Params, args: &PilArgs) -> Result<()> {
             );
         }
         println!(
-            "longest locked section: {} instructions ({}); budget {}",
-            r.max_lock_instructions, r.max_lock_command, args.lock_budget
+            "longest locked section: {} instructions ({}); budget {}{}",
+            r.max_lock_instructions,
+            r.max_lock_command,
+            args.lock_budget,
+            args.set_config_budget.map_or(String::new(), |b| format!(", {b} for set_config"))
         );
         println!(
             "{} control periods, {} whose outputs differ from the host build",
@@ -446,16 +450,21 @@ fn cmd_pil_locks(params: &Params, args: &PilArgs) -> Result<()> {
     if r.sil_mismatch_ticks > 0 {
         problems.push(format!("{} periods differ between the M4 and the host build", r.sil_mismatch_ticks));
     }
+    let set_config_budget = args.set_config_budget.unwrap_or(args.lock_budget);
     let over: Vec<String> = r
         .locks
         .iter()
-        .filter(|l| l.instructions > args.lock_budget)
-        .map(|l| format!("{} ({})", l.line, l.instructions))
+        .flat_map(|l| l.sections.iter().map(move |s| (l, s)))
+        .filter(|(_, s)| {
+            s.instructions > if s.what == "set_config" { set_config_budget } else { args.lock_budget }
+        })
+        .map(|(l, s)| format!("{} ({}: {})", l.line, s.what, s.instructions))
         .collect();
     if !over.is_empty() {
         problems.push(format!(
-            "locked sections over the budget of {} instructions: {}",
+            "locked sections over the budget of {} instructions ({} for set_config): {}",
             args.lock_budget,
+            set_config_budget,
             over.join(", ")
         ));
     }

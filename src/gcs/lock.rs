@@ -8,7 +8,8 @@
 //! (see [`Gcs::is_read_only`], [`Gcs::is_settings_only`]):
 //! - a query (`…?`, #5, #7, and what only latches an error) takes a [`Snapshot`] under the
 //!   lock (the settings and the state's scalars, not the 3 KiB controller) and is answered from
-//!   it without the lock;
+//!   it without the lock; `XTM?` copies the controller instead (its thrust limits may evaluate
+//!   the model) and takes its snapshot from the copy;
 //! - a settings command (`SPA`, `VEL`, `ACC`, `DEC`) takes the same snapshot, is parsed and
 //!   checked on a copy of its settings without the lock, and only `Controller::set_config` runs
 //!   under it again (when the settings changed);
@@ -50,12 +51,20 @@ impl Gcs {
         let parsed = Parsed::of(pending);
         let thrust = parsed.needs_thrust();
         match parsed.shape() {
+            Shape::Query if thrust => {
+                // `XTM?`: the thrust limits may evaluate the model (when no model table fits the
+                // preload yet, 3 400 instructions on the M4): from a copy of the controller,
+                // evaluated without the lock.
+                let Some(copy) = shared.lock(|ctl| ctl.clone()) else { return };
+                let snap = Snapshot::take(&copy, true);
+                self.run_query(&parsed, &snap, board, Out::new(reply));
+            }
             Shape::Query => {
-                let Some(snap) = shared.lock(|ctl| Snapshot::take(ctl, thrust)) else { return };
+                let Some(snap) = shared.lock(|ctl| Snapshot::take(ctl, false)) else { return };
                 self.run_query(&parsed, &snap, board, Out::new(reply));
             }
             Shape::Settings => {
-                let Some(snap) = shared.lock(|ctl| Snapshot::take(ctl, thrust)) else { return };
+                let Some(snap) = shared.lock(|ctl| Snapshot::take(ctl, false)) else { return };
                 let start = reply.len();
                 if let Some(new) = self.run_settings(&parsed, &snap, board, Out::new(reply)) {
                     // The same checks passed on the same settings (only commands change them,
@@ -69,6 +78,19 @@ impl Gcs {
             Shape::Locked => {
                 shared.lock(|ctl| self.run_locked(&parsed, ctl, board, Out::new(reply)));
             }
+        }
+    }
+
+    /// The locked sections [`Gcs::execute_shared`] runs for `pending`, by name, in order: a
+    /// query's `snapshot` (`XTM?`'s `controller copy`), a settings command's `snapshot` and
+    /// `set_config` (the second only when the settings change), any other command's `command`.
+    pub fn locked_sections(pending: &Pending) -> &'static [&'static str] {
+        let parsed = Parsed::of(pending);
+        match parsed.shape() {
+            Shape::Query if parsed.needs_thrust() => &["controller copy"],
+            Shape::Query => &["snapshot"],
+            Shape::Settings => &["snapshot", "set_config"],
+            Shape::Locked => &["command"],
         }
     }
 

@@ -39,6 +39,10 @@ pub struct PilArgs {
     /// instructions.
     #[arg(long, default_value_t = host_sim::harness::pil_locks::DEFAULT_LOCK_BUDGET, requires = "gcs_locks")]
     pub lock_budget: u32,
+    /// With --gcs-locks: a budget of its own for the settings commands' `set_config` section
+    /// (controller code: `Controller::set_config`); the lock budget when absent.
+    #[arg(long, requires = "gcs_locks")]
+    pub set_config_budget: Option<u32>,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
     pub json: bool,

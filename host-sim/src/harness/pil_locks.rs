@@ -186,13 +186,22 @@ pub struct Lock {
     pub line: String,
     /// The longest locked section (instructions).
     pub instructions: u32,
-    /// Every locked section, in order (instructions).
-    pub sections: Vec<u32>,
+    /// Every locked section, in order.
+    pub sections: Vec<Section>,
     /// The whole command on the target, locked and not (instructions).
     pub total_instructions: u32,
     /// The error latched after it, and the reply's length.
     pub error: i32,
     pub reply_bytes: u32,
+}
+
+/// One locked section of a command.
+#[derive(Debug, Clone, Serialize)]
+pub struct Section {
+    /// What runs in it ([`Gcs::locked_sections`]): `snapshot`, `controller copy`, `set_config`
+    /// or `command`.
+    pub what: &'static str,
+    pub instructions: u32,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -313,8 +322,8 @@ pub(crate) fn drive(p: &Params, script: &[Step], mut target: Option<&mut Target>
                 let shown = String::from_utf8_lossy(bytes.strip_suffix(b"\n").unwrap_or(bytes));
                 let shown = match bytes.as_slice() {
                     [b] if *b < 0x20 => format!("0x{b:02X}"),
-                    _ if shown.chars().count() > 40 => {
-                        format!("{}… ({} bytes)", shown.chars().take(40).collect::<String>(), bytes.len())
+                    _ if shown.chars().count() > 34 => {
+                        format!("{}… ({} bytes)", shown.chars().take(20).collect::<String>(), bytes.len())
                     }
                     _ => shown.into_owned(),
                 };
@@ -328,8 +337,30 @@ pub(crate) fn drive(p: &Params, script: &[Step], mut target: Option<&mut Target>
                         .mismatches
                         .push(format!("{shown}: error {} after it, the script expects {want}", host.error));
                 }
-                let sections: Vec<u32> =
-                    m4.section_instructions.iter().take(usize::from(m4.sections)).copied().collect();
+                // The sections the firmware's path runs for these bytes, by name; the M4 must
+                // have run as many (a settings command that changes nothing skips its second).
+                let mut names: Vec<&'static str> = Vec::new();
+                let mut parser = Gcs::new();
+                for &b in bytes {
+                    if let Some(pending) = parser.push_byte(b) {
+                        names.extend(Gcs::locked_sections(&pending));
+                    }
+                }
+                let ran = usize::from(m4.sections);
+                if target.is_some() && (ran > names.len() || ran + 1 < names.len()) {
+                    result.mismatches.push(format!(
+                        "{shown}: the M4 ran {ran} locked sections, the firmware's path has {} ({})",
+                        names.len(),
+                        names.join(", ")
+                    ));
+                }
+                let sections: Vec<Section> = m4
+                    .section_instructions
+                    .iter()
+                    .take(ran)
+                    .zip(names.iter().chain(std::iter::repeat(&"?")))
+                    .map(|(&instructions, &what)| Section { what, instructions })
+                    .collect();
                 let lock = Lock {
                     command: command_name(bytes),
                     line: shown,

@@ -233,7 +233,45 @@ pub fn hot_paths() {
     inverse.print("MotorConstants::voltage_for (inverse model, cold start)", k);
     speed.print("ThrustPoint::speed_at_load_mm_s (false position)", k);
     thrust.print("ThrustPoint::thrust_n (one model evaluation)", k);
-    // How long each GCS command holds the tick off: `host-sim pil --gcs-locks`.
+    // How long each GCS command holds the tick off: `host-sim pil --gcs-locks`; here the parts
+    // of its locked sections that are the controller's own code.
+    lock_parts(k);
+}
+
+/// The controller code inside the GCS commands' locked sections (`src/gcs/lock.rs`):
+/// `Controller::set_config` (the settings commands) and its `validate_settings`, and
+/// `Controller::thrust_limits` (`XTM?`'s snapshot) when no model table fits the preload yet (the
+/// model task has not built one), which `host-sim pil --gcs-locks` cannot reach (the PIL image
+/// builds the table right after the tick that asks for it).
+fn lock_parts(k: f32) {
+    let cfg = controller_config();
+    let mut ctl = Controller::new(cfg).unwrap();
+    let inputs = Inputs { preload_word: (16.0 / cfg.preload.newton_per_word) as u16, ..Default::default() };
+    for _ in 0..200 {
+        ctl.step(&inputs);
+    }
+    let mut cold = Stat::new();
+    for _ in 0..50 {
+        cold.add(counts(|| {
+            core::hint::black_box(core::hint::black_box(&ctl).thrust_limits());
+        }));
+    }
+    cold.print("Controller::thrust_limits, no model table yet (XTM?'s snapshot)", k);
+    let mut valid = Stat::new();
+    let mut set = Stat::new();
+    let mut other = cfg;
+    other.velocity_max_nm_s *= 0.9;
+    for i in 0..50 {
+        let new = if i % 2 == 0 { other } else { cfg };
+        valid.add(counts(|| {
+            core::hint::black_box(piezo_drive::controller::validate_settings(core::hint::black_box(&new))).ok();
+        }));
+        set.add(counts(|| {
+            core::hint::black_box(ctl.set_config(core::hint::black_box(new))).ok();
+        }));
+    }
+    valid.print("validate_settings", k);
+    set.print("Controller::set_config, VEL changed (the settings commands' second lock)", k);
 }
 
 /// The data recorder's share of the tick (`Recorder::sample` after the step, as the firmware's
