@@ -4,7 +4,7 @@
 //! are collected outside any lock. Each command runs through
 //! `Gcs::execute_shared` (`src/gcs/lock.rs`), which decides what runs with the controller
 //! locked (the TIM7 tick masked) and what runs without; `host-sim pil --gcs-locks` counts every
-//! locked section of every command on the emulated M4 (README, Loop timing).
+//! locked section of every command on the emulated M4 (docs/firmware.md, Loop timing).
 
 use embassy_stm32::usart::BufferedUart;
 use embedded_io_async::{Read, Write};
