@@ -336,6 +336,11 @@ fn cmd_pil(params: &Params, args: PilArgs) -> Result<()> {
     if args.gcs_locks {
         return cmd_pil_locks(params, &args);
     }
+    if args.lock_budget.is_some() || args.set_config_budget.is_some() {
+        bail!(
+            "--lock-budget and --set-config-budget go with --gcs-locks (the move's tick budget is --budget)"
+        );
+    }
     let options = args.options();
     host_sim::harness::pil::validate(&options)?;
     let elf = match &args.elf {
@@ -401,6 +406,7 @@ fn cmd_pil(params: &Params, args: PilArgs) -> Result<()> {
 /// the lock budget.
 fn cmd_pil_locks(params: &Params, args: &PilArgs) -> Result<()> {
     use host_sim::harness::pil_locks;
+    let lock_budget = args.lock_budget.unwrap_or(pil_locks::DEFAULT_LOCK_BUDGET);
     let elf = match &args.elf {
         Some(path) => path.clone(),
         None => host_sim::harness::pil::build_target(&mut |what| eprintln!("pil: {what}..."))?,
@@ -434,7 +440,7 @@ fn cmd_pil_locks(params: &Params, args: &PilArgs) -> Result<()> {
             "longest locked section: {} instructions ({}); budget {}{}",
             r.max_lock_instructions,
             r.max_lock_command,
-            args.lock_budget,
+            lock_budget,
             args.set_config_budget.map_or(String::new(), |b| format!(", {b} for set_config"))
         );
         println!(
@@ -450,20 +456,20 @@ fn cmd_pil_locks(params: &Params, args: &PilArgs) -> Result<()> {
     if r.sil_mismatch_ticks > 0 {
         problems.push(format!("{} periods differ between the M4 and the host build", r.sil_mismatch_ticks));
     }
-    let set_config_budget = args.set_config_budget.unwrap_or(args.lock_budget);
+    let set_config_budget = args.set_config_budget.unwrap_or(lock_budget);
     let over: Vec<String> = r
         .locks
         .iter()
         .flat_map(|l| l.sections.iter().map(move |s| (l, s)))
         .filter(|(_, s)| {
-            s.instructions > if s.what == "set_config" { set_config_budget } else { args.lock_budget }
+            s.instructions > if s.what == "set_config" { set_config_budget } else { lock_budget }
         })
         .map(|(l, s)| format!("{} ({}: {})", l.line, s.what, s.instructions))
         .collect();
     if !over.is_empty() {
         problems.push(format!(
             "locked sections over the budget of {} instructions ({} for set_config): {}",
-            args.lock_budget,
+            lock_budget,
             set_config_budget,
             over.join(", ")
         ));

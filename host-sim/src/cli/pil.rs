@@ -36,12 +36,12 @@ pub struct PilArgs {
     #[arg(long, conflicts_with_all = ["to_um", "fault", "budget", "all_states"])]
     pub gcs_locks: bool,
     /// With --gcs-locks: exit with an error when a locked section exceeds this many
-    /// instructions.
-    #[arg(long, default_value_t = host_sim::harness::pil_locks::DEFAULT_LOCK_BUDGET, requires = "gcs_locks")]
-    pub lock_budget: u32,
+    /// instructions [default: 3000].
+    #[arg(long)]
+    pub lock_budget: Option<u32>,
     /// With --gcs-locks: a budget of its own for the settings commands' `set_config` section
     /// (controller code: `Controller::set_config`); the lock budget when absent.
-    #[arg(long, requires = "gcs_locks")]
+    #[arg(long)]
     pub set_config_budget: Option<u32>,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
