@@ -204,3 +204,85 @@ pub fn decode_reply(b: &[u8; REPLY_BYTES]) -> Reply {
         background_instructions: u32::from_le_bytes(get::<4>(b, at + 12)),
     }
 }
+
+// ---------------------------------------------------------------- GCS commands (`--gcs-locks`)
+
+/// First byte of a host → target frame that carries a GCS command instead of a tick: the
+/// frame's bytes 2..4 give the length of the command bytes that follow it (as the UART would
+/// deliver them: a line with its LF, or a single control byte). The target runs them through
+/// [`crate::gcs::Gcs::execute_shared`] on its controller, counting each locked section, and
+/// answers with a [`GcsReport`]. No step runs for such a frame.
+pub const GCS_TAG: u8 = 6;
+/// Most command bytes in one GCS frame (a too-long line fits).
+pub const GCS_MAX_BYTES: usize = 512;
+/// Most locked sections one command is reported with.
+pub const GCS_SECTIONS: usize = 4;
+/// Target → host answer to a GCS frame.
+pub const GCS_REPORT_BYTES: usize = 20 + 4 * GCS_SECTIONS;
+
+/// What the target did with a GCS frame's bytes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct GcsReport {
+    /// Commands the bytes made (0 for bytes that complete none).
+    pub commands: u8,
+    /// Locked sections run, and the instructions of the first [`GCS_SECTIONS`] of them.
+    pub sections: u8,
+    pub section_instructions: [u32; GCS_SECTIONS],
+    /// Instructions of the whole execution, locked and not.
+    pub total_instructions: u32,
+    /// The error latched after the command (not cleared).
+    pub error: i32,
+    /// Length and CRC-32 ([`crate::storage::crc32`]) of the reply bytes.
+    pub reply_len: u32,
+    pub reply_crc: u32,
+}
+
+impl GcsReport {
+    /// The longest locked section.
+    pub fn max_section(&self) -> u32 {
+        self.section_instructions.iter().copied().max().unwrap_or(0)
+    }
+}
+
+/// The frame that announces `len` command bytes.
+pub fn encode_gcs_header(len: usize) -> [u8; TICK_BYTES] {
+    let mut b = [0u8; TICK_BYTES];
+    put(&mut b, 0, &[GCS_TAG, 0]);
+    put(&mut b, 2, &(len.min(GCS_MAX_BYTES) as u16).to_le_bytes());
+    b
+}
+
+/// The number of command bytes a GCS frame announces; `None` for any other frame.
+pub fn decode_gcs_header(b: &[u8; TICK_BYTES]) -> Option<usize> {
+    (b[0] == GCS_TAG).then(|| usize::from(u16::from_le_bytes(get::<2>(b, 2))).min(GCS_MAX_BYTES))
+}
+
+pub fn encode_gcs_report(r: &GcsReport) -> [u8; GCS_REPORT_BYTES] {
+    let mut b = [0u8; GCS_REPORT_BYTES];
+    put(&mut b, 0, &[r.commands, r.sections, 0, 0]);
+    put(&mut b, 4, &r.total_instructions.to_le_bytes());
+    put(&mut b, 8, &r.error.to_le_bytes());
+    put(&mut b, 12, &r.reply_len.to_le_bytes());
+    put(&mut b, 16, &r.reply_crc.to_le_bytes());
+    for (i, s) in r.section_instructions.iter().enumerate() {
+        put(&mut b, 20 + 4 * i, &s.to_le_bytes());
+    }
+    b
+}
+
+pub fn decode_gcs_report(b: &[u8; GCS_REPORT_BYTES]) -> GcsReport {
+    let [commands, sections, _, _] = get::<4>(b, 0);
+    let mut section_instructions = [0u32; GCS_SECTIONS];
+    for (i, s) in section_instructions.iter_mut().enumerate() {
+        *s = u32::from_le_bytes(get::<4>(b, 20 + 4 * i));
+    }
+    GcsReport {
+        commands,
+        sections,
+        section_instructions,
+        total_instructions: u32::from_le_bytes(get::<4>(b, 4)),
+        error: i32::from_le_bytes(get::<4>(b, 8)),
+        reply_len: u32::from_le_bytes(get::<4>(b, 12)),
+        reply_crc: u32::from_le_bytes(get::<4>(b, 16)),
+    }
+}

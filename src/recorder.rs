@@ -152,7 +152,7 @@ impl Table {
     }
 
     /// Point 1 now, then one every `rate` ticks.
-    fn start(&self, rate: u32, ctl: &Controller) {
+    fn start(&self, rate: u32, ctl: &impl Source) {
         let opt = self.option.load(Ordering::Relaxed);
         if opt == option::NOTHING {
             return;
@@ -198,9 +198,41 @@ pub fn state_code(s: State) -> i32 {
     }
 }
 
+/// What a point is taken from: the controller, or a snapshot of it (a query's, so that the
+/// "next command" trigger can fire after a query has answered, without the controller).
+pub trait Source {
+    fn reference_nm(&self) -> i64;
+    fn position_nm(&self) -> i64;
+    fn drive_voltage_v(&self) -> f32;
+    fn drive_frequency_hz(&self) -> f32;
+    fn preload_n(&self) -> Option<f32>;
+    fn state(&self) -> State;
+}
+
+impl Source for Controller {
+    fn reference_nm(&self) -> i64 {
+        Controller::reference_nm(self)
+    }
+    fn position_nm(&self) -> i64 {
+        Controller::position_nm(self)
+    }
+    fn drive_voltage_v(&self) -> f32 {
+        Controller::drive_voltage_v(self)
+    }
+    fn drive_frequency_hz(&self) -> f32 {
+        Controller::drive_frequency_hz(self)
+    }
+    fn preload_n(&self) -> Option<f32> {
+        Controller::preload_n(self)
+    }
+    fn state(&self) -> State {
+        Controller::state(self)
+    }
+}
+
 /// The point option `opt` records for the controller as it is now.
 #[inline]
-fn point(opt: u32, ctl: &Controller) -> i32 {
+fn point(opt: u32, ctl: &impl Source) -> i32 {
     match opt {
         option::COMMANDED_POSITION => nm_i32(ctl.reference_nm()),
         option::ACTUAL_POSITION => nm_i32(ctl.position_nm()),
@@ -357,7 +389,7 @@ impl Recorder {
     /// `ctl` as it is now. Only an armed table starts, which the tick does not touch until its
     /// phase says recording (stored last): safe beside the tick, so a query (which the board runs
     /// without holding the tick off) may be that command.
-    pub fn on_command(&self, ctl: &Controller) {
+    pub fn on_command(&self, ctl: &impl Source) {
         let rate = self.rate();
         for t in &self.tables {
             if t.trigger.load(Ordering::Relaxed) == trigger::NEXT_COMMAND

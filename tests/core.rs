@@ -305,6 +305,26 @@ fn pil_frames_round_trip_and_reject_unknown_commands() {
     assert_eq!(decode_state(0x80), None);
     assert_eq!(state_name(0x80), "unknown");
     assert_eq!(r.state & 0x7f, FaultCode::EncoderJump as u8);
+    // A GCS frame: its header is no tick, and its report comes back whole.
+    let header = encode_gcs_header(301);
+    assert_eq!(decode_gcs_header(&header), Some(301));
+    assert_eq!(decode_tick(&header), None);
+    assert_eq!(
+        decode_gcs_header(&encode_tick(&Tick { command: Command::None, inputs: Inputs::default() })),
+        None
+    );
+    assert_eq!(decode_gcs_header(&encode_gcs_header(70_000)), Some(GCS_MAX_BYTES));
+    let g = GcsReport {
+        commands: 2,
+        sections: 5,
+        section_instructions: [2_880, 5_440, 7, 0xFFFF_FFFF],
+        total_instructions: 34_200,
+        error: -4_100,
+        reply_len: 4_096,
+        reply_crc: 0xDEAD_BEEF,
+    };
+    assert_eq!(decode_gcs_report(&encode_gcs_report(&g)), g);
+    assert_eq!(g.max_section(), 0xFFFF_FFFF);
 }
 
 /// The model table's acos (Abramowitz & Stegun 4.4.45) against the f64 acos: within 7e-5 rad

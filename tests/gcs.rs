@@ -1222,3 +1222,69 @@ fn a_limit_switch_stopping_a_move_latches_error_7() {
     rig.steps(5, Inputs { positive_limit: true, ..Default::default() });
     rig.transcript(&[(b"ERR?\n", b"0\n")]);
 }
+
+/// Issue 30 item 2: what each command runs with the controller locked (the board's tick held
+/// off), by its kind: a query only a snapshot (`XTM?` a copy of the controller, its thrust limits
+/// may evaluate the model), a settings command a snapshot and then `set_config` (only when the
+/// settings change), any other command the command itself. A command that changes kind, or a
+/// runner that locks more often, fails here; `host-sim pil --gcs-locks` counts the instructions.
+#[test]
+fn each_command_locks_the_controller_as_its_kind_says() {
+    use piezo_drive::gcs::{SharedController, COMMANDS};
+    struct Counting<'a> {
+        ctl: &'a mut Controller,
+        locks: usize,
+    }
+    impl SharedController for Counting<'_> {
+        fn lock<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> Option<R> {
+            self.locks += 1;
+            Some(f(self.ctl))
+        }
+    }
+    let settings = ["SPA", "VEL", "ACC", "DEC"];
+    for c in COMMANDS {
+        let (pending, text) = match c.name.strip_prefix('#') {
+            Some(n) => (Pending::Byte(n.parse::<u8>().unwrap()), c.name.to_string()),
+            None => {
+                // Settings to new values (the defaults are VEL 10, ACC and DEC 1000); others bare.
+                let text = match c.name {
+                    "SPA" => "SPA 1 0xA 8".to_string(),
+                    "VEL" => "VEL 1 9".to_string(),
+                    "ACC" => "ACC 1 900".to_string(),
+                    "DEC" => "DEC 1 900".to_string(),
+                    name => name.to_string(),
+                };
+                let mut line = heapless::Vec::new();
+                line.extend_from_slice(text.as_bytes()).unwrap();
+                (Pending::Line(line), text)
+            }
+        };
+        let expect: &[&str] = if c.name == "XTM?" {
+            &["controller copy"]
+        } else if c.name.ends_with('?') || c.name == "#5" || c.name == "#7" {
+            &["snapshot"]
+        } else if settings.contains(&c.name) {
+            &["snapshot", "set_config"]
+        } else {
+            &["command"]
+        };
+        assert_eq!(Gcs::locked_sections(&pending), expect, "{text}");
+        let mut rig = Rig::new();
+        let mut shared = Counting { ctl: &mut rig.ctl, locks: 0 };
+        let mut reply = Reply::new();
+        rig.gcs.execute_shared(&pending, &mut shared, &mut rig.board, &mut reply);
+        assert_eq!(shared.locks, expect.len(), "{text}");
+        if settings.contains(&c.name) {
+            assert_eq!(rig.gcs.latched_error(), 0, "{text}");
+        }
+    }
+    // A settings command that changes nothing, or is refused, locks once (no set_config).
+    for text in [&b"VEL 1 10"[..], b"SPA 1 0xA -5"] {
+        let mut line = heapless::Vec::new();
+        line.extend_from_slice(text).unwrap();
+        let mut rig = Rig::new();
+        let mut shared = Counting { ctl: &mut rig.ctl, locks: 0 };
+        rig.gcs.execute_shared(&Pending::Line(line), &mut shared, &mut rig.board, &mut Reply::new());
+        assert_eq!(shared.locks, 1, "{}", String::from_utf8_lossy(text));
+    }
+}

@@ -333,6 +333,14 @@ fn cmd_trace(
 
 /// `host-sim pil`: the move with the core on the emulated Cortex-M4F, and its tick budget.
 fn cmd_pil(params: &Params, args: PilArgs) -> Result<()> {
+    if args.gcs_locks {
+        return cmd_pil_locks(params, &args);
+    }
+    if args.lock_budget.is_some() || args.set_config_budget.is_some() {
+        bail!(
+            "--lock-budget and --set-config-budget go with --gcs-locks (the move's tick budget is --budget)"
+        );
+    }
     let options = args.options();
     host_sim::harness::pil::validate(&options)?;
     let elf = match &args.elf {
@@ -390,6 +398,84 @@ fn cmd_pil(params: &Params, args: PilArgs) -> Result<()> {
                 r.tick_instructions_max
             );
         }
+    }
+    Ok(())
+}
+
+/// `host-sim pil --gcs-locks`: every GCS command's locked sections on the emulated M4, against
+/// the lock budget.
+fn cmd_pil_locks(params: &Params, args: &PilArgs) -> Result<()> {
+    use host_sim::harness::pil_locks;
+    let lock_budget = args.lock_budget.unwrap_or(pil_locks::DEFAULT_LOCK_BUDGET);
+    let elf = match &args.elf {
+        Some(path) => path.clone(),
+        None => host_sim::harness::pil::build_target(&mut |what| eprintln!("pil: {what}..."))?,
+    };
+    eprintln!("pil: every GCS command through the core on the emulated Cortex-M4F...");
+    let r = pil_locks::run(params, &elf)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&r)?);
+    } else {
+        println!(
+            "GCS commands on the emulated M4: instructions with the controller locked (the tick held off)"
+        );
+        println!(
+            "{:<8} {:<34} {:>7}  {:<32} {:>9} {:>5}",
+            "command", "sent", "locked", "locked sections", "whole", "error"
+        );
+        for l in &r.locks {
+            let sections: Vec<String> =
+                l.sections.iter().map(|s| format!("{} {}", s.what, s.instructions)).collect();
+            println!(
+                "{:<8} {:<34} {:>7}  {:<32} {:>9} {:>5}",
+                l.command,
+                l.line,
+                l.instructions,
+                sections.join(" + "),
+                l.total_instructions,
+                l.error
+            );
+        }
+        println!(
+            "longest locked section: {} instructions ({}); budget {}{}",
+            r.max_lock_instructions,
+            r.max_lock_command,
+            lock_budget,
+            args.set_config_budget.map_or(String::new(), |b| format!(", {b} for set_config"))
+        );
+        println!(
+            "{} control periods, {} whose outputs differ from the host build",
+            r.ticks, r.sil_mismatch_ticks
+        );
+    }
+    let mut problems = Vec::new();
+    if !r.unmeasured_commands.is_empty() {
+        problems.push(format!("commands not measured: {}", r.unmeasured_commands.join(", ")));
+    }
+    problems.extend(r.mismatches.iter().cloned());
+    if r.sil_mismatch_ticks > 0 {
+        problems.push(format!("{} periods differ between the M4 and the host build", r.sil_mismatch_ticks));
+    }
+    let set_config_budget = args.set_config_budget.unwrap_or(lock_budget);
+    let over: Vec<String> = r
+        .locks
+        .iter()
+        .flat_map(|l| l.sections.iter().map(move |s| (l, s)))
+        .filter(|(_, s)| {
+            s.instructions > if s.what == "set_config" { set_config_budget } else { lock_budget }
+        })
+        .map(|(l, s)| format!("{} ({}: {})", l.line, s.what, s.instructions))
+        .collect();
+    if !over.is_empty() {
+        problems.push(format!(
+            "locked sections over the budget of {} instructions ({} for set_config): {}",
+            lock_budget,
+            set_config_budget,
+            over.join(", ")
+        ));
+    }
+    if !problems.is_empty() {
+        bail!("{}", problems.join("; "));
     }
     Ok(())
 }

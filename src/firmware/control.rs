@@ -30,8 +30,10 @@
 //! Sharing the controller: the tick runs at priority 1 with interrupts enabled, so the UART,
 //! time-driver, EXTI and WWDG interrupts (priority 0, all short) preempt it. The UART task
 //! (thread mode) takes the controller through [`TickLock::lock`], which masks only the TIM7
-//! interrupt: read-only queries copy the controller under the lock and format outside it;
-//! commands that change it run under it (short: parse, check, set).
+//! interrupt: queries take a snapshot of it under the lock and format outside it; settings
+//! commands check a copy of the settings outside it and set them under it; other commands run
+//! under it (check and act). `piezo_drive::gcs::Gcs::execute_shared` decides which, and
+//! `host-sim pil --gcs-locks` counts every locked section on the emulated M4.
 
 use core::cell::UnsafeCell;
 use core::sync::atomic::{compiler_fence, AtomicBool, AtomicU32, Ordering};

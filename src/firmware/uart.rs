@@ -1,19 +1,15 @@
 //! UART on LPUART1 (PA2 TX, PA3 RX: the ST-LINK virtual COM port), 115200 8N1, embassy's
 //! interrupt-driven `BufferedUart` (256-byte receive ring filled by the interrupt, so bytes keep
 //! arriving while a command runs). Lines go to the core's protocol (`piezo_drive::gcs`): bytes
-//! are collected outside any lock. A read-only command (`…?`, #5, #7: `Gcs::is_read_only`)
-//! runs on a copy of the controller taken with the TIM7 tick masked for the copy only (a memcpy
-//! of the controller, a few hundred cycles), so formatting a long reply (`SPA?`, `HPA?`, `HLP?`:
-//! tens of thousands of instructions of software f64) never holds the tick off. A settings
-//! command (`SPA`, `VEL`, `ACC`, `DEC`: `Gcs::is_settings_only`) is parsed and checked on a copy
-//! too, and only `Controller::set_config` runs locked. Every other command that changes the
-//! controller runs with it locked (parse, check, set: about 1 000 instructions). Measured on the
-//! emulated M4: `tools/pil/run` (README, Loop timing).
+//! are collected outside any lock. Each command runs through
+//! `Gcs::execute_shared` (`src/gcs/lock.rs`), which decides what runs with the controller
+//! locked (the TIM7 tick masked) and what runs without; `host-sim pil --gcs-locks` counts every
+//! locked section of every command on the emulated M4 (docs/firmware.md, Loop timing).
 
 use embassy_stm32::usart::BufferedUart;
 use embedded_io_async::{Read, Write};
-use piezo_drive::controller::ControllerConfig;
-use piezo_drive::gcs::{Board, Gcs, LoopStats, Pending, Reply};
+use piezo_drive::controller::{Controller, ControllerConfig};
+use piezo_drive::gcs::{Board, Gcs, LoopStats, Reply, SharedController};
 use piezo_drive::recorder::Recorder;
 
 use super::control::{loop_stats, CONTROLLER, RECORDER};
@@ -46,32 +42,12 @@ impl Board for FwBoard {
     }
 }
 
-fn execute(gcs: &mut Gcs, pending: &Pending, board: &mut FwBoard, reply: &mut Reply) {
-    if Gcs::is_read_only(pending) {
-        // The copy is taken with the tick masked; the reply is formatted without.
-        if let Some(Some(mut copy)) = CONTROLLER.lock(|ctl| ctl.clone()) {
-            gcs.execute(pending, &mut copy, board, reply);
-        }
-    } else if Gcs::is_settings_only(pending) {
-        // Parsed and checked on a copy; the real controller only takes the new settings.
-        if let Some(Some(mut copy)) = CONTROLLER.lock(|ctl| ctl.clone()) {
-            gcs.execute(pending, &mut copy, board, reply);
-            let new = *copy.config();
-            let _ = CONTROLLER.lock(|ctl| {
-                if let Some(ctl) = ctl.as_mut() {
-                    if *ctl.config() != new {
-                        // Cannot fail: the copy accepted the same settings from the same ones.
-                        let _ = ctl.set_config(new);
-                    }
-                }
-            });
-        }
-    } else {
-        let _ = CONTROLLER.lock(|ctl| {
-            if let Some(ctl) = ctl.as_mut() {
-                gcs.execute(pending, ctl, board, reply);
-            }
-        });
+/// The controller as the tick shares it: [`CONTROLLER`]'s lock (TIM7 masked).
+struct TickShared;
+
+impl SharedController for TickShared {
+    fn lock<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> Option<R> {
+        CONTROLLER.lock(|ctl| ctl.as_mut().map(f)).flatten()
     }
 }
 
@@ -92,7 +68,7 @@ pub async fn uart_task(mut uart: BufferedUart<'static>) {
         for &byte in chunk.iter().take(n) {
             let Some(pending) = gcs.push_byte(byte) else { continue };
             reply.clear();
-            execute(&mut gcs, &pending, &mut board, &mut reply);
+            gcs.execute_shared(&pending, &mut TickShared, &mut board, &mut reply);
             if !reply.is_empty() {
                 if let Err(e) = uart.write_all(&reply).await {
                     defmt::warn!("uart: {}", e);

@@ -11,7 +11,7 @@
 //! [`Gcs::continue_reply`] until [`Gcs::reply_pending`] is false.
 
 use super::args::{axis, no_args};
-use super::call::{Call, GcsResult};
+use super::call::{Call, GcsResult, Query};
 use super::framing::Out;
 use super::{error, Board, Gcs, Reply};
 use crate::gcs::num::{parse_int, write_scaled};
@@ -122,8 +122,8 @@ pub(super) fn drc(_gcs: &mut Gcs, c: Call) -> GcsResult {
 }
 
 /// `DRC? [{<RecTableID>}]` → `1=1 2` per table.
-pub(super) fn drc_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, board, out, .. } = c;
+pub(super) fn drc_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, board, out, .. } = c;
     let rec = recorder(board)?;
     for id in query_tables(args)? {
         let opt = rec.option(id).map_err(recorder_error)?;
@@ -160,8 +160,8 @@ pub(super) fn drt(_gcs: &mut Gcs, c: Call) -> GcsResult {
 }
 
 /// `DRT? [{<RecTableID>}]` → `1=6 0` per table.
-pub(super) fn drt_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, board, out, .. } = c;
+pub(super) fn drt_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, board, out, .. } = c;
     let rec = recorder(board)?;
     for id in query_tables(args)? {
         let trig = rec.trigger(id).map_err(recorder_error)?;
@@ -175,8 +175,8 @@ pub(super) fn drt_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
 }
 
 /// `DRL? [{<RecTableID>}]` → `1=360`: points recorded ([`DEPTH`] when the table is full).
-pub(super) fn drl_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, board, out, .. } = c;
+pub(super) fn drl_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, board, out, .. } = c;
     let rec = recorder(board)?;
     for id in query_tables(args)? {
         let n = rec.points(id).map_err(recorder_error)?;
@@ -201,8 +201,8 @@ pub(super) fn rtr(_gcs: &mut Gcs, c: Call) -> GcsResult {
 }
 
 /// `RTR?` → the rate.
-pub(super) fn rtr_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, board, out, .. } = c;
+pub(super) fn rtr_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, board, out, .. } = c;
     let rec = recorder(board)?;
     no_args(args)?;
     out.line();
@@ -211,8 +211,8 @@ pub(super) fn rtr_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
 }
 
 /// `TNR?` → the number of record tables.
-pub(super) fn tnr_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, board, out, .. } = c;
+pub(super) fn tnr_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, board, out, .. } = c;
     recorder(board)?;
     no_args(args)?;
     out.line();
@@ -223,8 +223,8 @@ pub(super) fn tnr_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
 /// `HDR?`: the record and trigger options and the table depth, as PIPython's
 /// `datarectools.get_hdr_options` reads them (its `getmaxnumvalues` takes the depth from the
 /// line `<n> datapoints per table`).
-pub(super) fn hdr_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, board, out, .. } = c;
+pub(super) fn hdr_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, board, out, .. } = c;
     recorder(board)?;
     no_args(args)?;
     out.line();
@@ -269,8 +269,8 @@ pub(super) fn hdr_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
 /// holds; the tables with a record option when none is named. `SAMPLE_TIME` is the first
 /// column's (tables triggered under different `RTR`s differ). Refused: a start or count of 0
 /// (17), a table without a record option (78), a start past the recorded points (77).
-pub(super) fn drr_query(gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, ctl, board, out } = c;
+pub(super) fn drr_query(gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, ctl, board, out } = c;
     let rec = recorder(board)?;
     let (start, wanted, named) = match args {
         [] => (1, None, &[][..]),

@@ -39,7 +39,11 @@ impl num::Sink for Out<'_> {
     }
 }
 
-impl Out<'_> {
+impl<'a> Out<'a> {
+    /// A reply appended to `buf`.
+    pub(super) fn new(buf: &'a mut Reply) -> Self {
+        Out { buf, lines: 0, ok: true }
+    }
     pub(super) fn line(&mut self) {
         if self.lines > 0 {
             self.s(" \n");

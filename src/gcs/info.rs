@@ -2,7 +2,7 @@
 //! and the identification strings they print.
 
 use super::args::no_args;
-use super::call::{Call, GcsResult};
+use super::call::{GcsResult, Query};
 use super::{error, Gcs};
 
 /// `*IDN?` fields: maker, model, (serial), version (three dot-separated parts at most).
@@ -12,8 +12,8 @@ pub const IDN_VERSION: &str = env!("CARGO_PKG_VERSION");
 /// `CST?`: what the axis is.
 pub const STAGE_NAME: &str = "SHAKING-BEAM-PIEZO";
 
-pub(super) fn idn_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, board, out, .. } = c;
+pub(super) fn idn_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, board, out, .. } = c;
     no_args(args)?;
     out.line();
     out.s(IDN_MAKER);
@@ -33,16 +33,16 @@ pub(super) fn idn_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
     Ok(())
 }
 
-pub(super) fn csv_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, out, .. } = c;
+pub(super) fn csv_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, out, .. } = c;
     no_args(args)?;
     out.line();
     out.s("2.0");
     Ok(())
 }
 
-pub(super) fn sai_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, out, .. } = c;
+pub(super) fn sai_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, out, .. } = c;
     match args {
         [] => {}
         [all] if all.eq_ignore_ascii_case(b"ALL") => {}
@@ -54,14 +54,14 @@ pub(super) fn sai_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
     Ok(())
 }
 
-pub(super) fn cst_query(gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, out, .. } = c;
+pub(super) fn cst_query(gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, out, .. } = c;
     gcs.axis_query(args, out, |out| out.s(STAGE_NAME))?;
     Ok(())
 }
 
-pub(super) fn xlt_query(_gcs: &mut Gcs, c: Call) -> GcsResult {
-    let Call { args, board, out, .. } = c;
+pub(super) fn xlt_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, board, out, .. } = c;
     no_args(args)?;
     let s = board.loop_stats();
     for (key, v) in [

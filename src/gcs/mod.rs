@@ -14,7 +14,8 @@
 //! referencing, moves, stops), `state` (queries of the controller's state), `settings`
 //! (parameters, motion and travel limits, `WPA`), `info` (identification, loop timing),
 //! [`datarec`] (the data recorder, and a `DRR?` reply that goes on over several buffers); and
-//! on top `commands` ([`COMMANDS`], [`Gcs::execute`] and `HLP?`, which lists the table). Here:
+//! on top `commands` ([`COMMANDS`], [`Gcs::execute`] and `HLP?`, which lists the table) and
+//! [`lock`] (what runs with a shared controller locked: [`Gcs::execute_shared`]). Here:
 //! the protocol state [`Gcs`], the [`Board`] interface and the [`error`] numbers.
 
 mod args;
@@ -23,15 +24,18 @@ mod commands;
 pub mod datarec;
 mod framing;
 mod info;
+pub mod lock;
 mod motion;
 pub mod num;
 pub mod params;
 mod settings;
+pub mod snapshot;
 mod state;
 
 pub use commands::{Command, COMMANDS};
 pub use framing::Pending;
 pub use info::{IDN_MAKER, IDN_MODEL, IDN_VERSION, STAGE_NAME};
+pub use lock::{SharedController, Unshared};
 
 use crate::controller::ControllerConfig;
 use crate::recorder::Recorder;

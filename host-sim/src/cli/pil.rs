@@ -8,8 +8,8 @@ use std::path::PathBuf;
 #[derive(clap::Args, Debug, Clone)]
 pub struct PilArgs {
     /// Target position (µm).
-    #[arg(long, allow_negative_numbers = true)]
-    pub to_um: f64,
+    #[arg(long, allow_negative_numbers = true, required_unless_present = "gcs_locks")]
+    pub to_um: Option<f64>,
     /// Preload force F0 (N).
     #[arg(long, default_value_t = 16.0, allow_negative_numbers = true)]
     pub preload_n: f64,
@@ -30,6 +30,19 @@ pub struct PilArgs {
     /// 1.5 kHz), so that every state of the tick runs on the target against the plant.
     #[arg(long)]
     pub all_states: bool,
+    /// Instead of the move: send every GCS command the firmware knows to the core on the
+    /// emulated M4, between control periods against the plant, and print the instructions of
+    /// each section it runs with the controller locked (the tick held off on the board).
+    #[arg(long, conflicts_with_all = ["to_um", "fault", "budget", "all_states"])]
+    pub gcs_locks: bool,
+    /// With --gcs-locks: exit with an error when a locked section exceeds this many
+    /// instructions [default: 3000].
+    #[arg(long)]
+    pub lock_budget: Option<u32>,
+    /// With --gcs-locks: a budget of its own for the settings commands' `set_config` section
+    /// (controller code: `Controller::set_config`); the lock budget when absent.
+    #[arg(long)]
+    pub set_config_budget: Option<u32>,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
     pub json: bool,
@@ -39,7 +52,7 @@ impl PilArgs {
     /// The library's options of the run.
     pub fn options(&self) -> PilOptions {
         PilOptions {
-            to_um: self.to_um,
+            to_um: self.to_um.unwrap_or(0.0),
             preload_n: self.preload_n,
             load_n: self.load_n,
             fault: self.fault.map(FaultCase::from),

@@ -2,5 +2,6 @@
 //! and the demo, the sweep over carriages) and on QEMU's Cortex-M4F (PIL).
 pub mod moves;
 pub mod pil;
+pub mod pil_locks;
 pub mod sil;
 pub mod sweep;

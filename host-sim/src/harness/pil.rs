@@ -13,7 +13,7 @@ use crate::motor::params::Params;
 use crate::motor::plant::ExternalLoad;
 use anyhow::{anyhow, bail, Context, Result};
 use piezo_drive::controller::{Inputs, Outputs, State};
-use piezo_drive::pil_wire::{self, Command, Reply, Tick, REPLY_BYTES};
+use piezo_drive::pil_wire::{self, Command, GcsReport, Reply, Tick, REPLY_BYTES};
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::io::{Read, Write};
@@ -115,7 +115,7 @@ pub fn build_target(progress: &mut dyn FnMut(&str)) -> Result<PathBuf> {
 }
 
 /// The emulated M4 and the two FIFOs to it.
-struct Target {
+pub(crate) struct Target {
     qemu: Child,
     to_target: std::fs::File,
     from_target: std::fs::File,
@@ -130,7 +130,7 @@ impl Drop for Target {
 }
 
 impl Target {
-    fn start(elf: &Path) -> Result<Self> {
+    pub(crate) fn start(elf: &Path) -> Result<Self> {
         if !elf.is_file() {
             bail!("no target program at {}", elf.display());
         }
@@ -203,7 +203,7 @@ impl Target {
         Ok(Target { qemu, to_target, from_target, dir })
     }
 
-    fn tick(&mut self, tick: &Tick) -> Result<Reply> {
+    pub(crate) fn tick(&mut self, tick: &Tick) -> Result<Reply> {
         self.to_target.write_all(&pil_wire::encode_tick(tick)).context("writing to the emulated M4")?;
         let mut buf = [0u8; REPLY_BYTES];
         self.from_target.read_exact(&mut buf).map_err(|e| {
@@ -216,7 +216,28 @@ impl Target {
         Ok(pil_wire::decode_reply(&buf))
     }
 
-    fn finish(mut self) {
+    /// GCS command bytes (as the UART delivers them) through the target's protocol, every
+    /// locked section counted.
+    pub(crate) fn gcs(&mut self, bytes: &[u8]) -> Result<GcsReport> {
+        if bytes.len() > pil_wire::GCS_MAX_BYTES {
+            bail!("{} command bytes, at most {} go in one frame", bytes.len(), pil_wire::GCS_MAX_BYTES);
+        }
+        self.to_target
+            .write_all(&pil_wire::encode_gcs_header(bytes.len()))
+            .context("writing to the emulated M4")?;
+        self.to_target.write_all(bytes).context("writing to the emulated M4")?;
+        let mut buf = [0u8; pil_wire::GCS_REPORT_BYTES];
+        self.from_target.read_exact(&mut buf).map_err(|e| {
+            let mut out = String::new();
+            if let Some(mut s) = self.qemu.stdout.take() {
+                let _ = s.read_to_string(&mut out);
+            }
+            anyhow!("the emulated M4 stopped answering ({e}): {}", out.trim())
+        })?;
+        Ok(pil_wire::decode_gcs_report(&buf))
+    }
+
+    pub(crate) fn finish(mut self) {
         // The exit frame gets no reply: the target leaves QEMU.
         let _ = self
             .to_target

@@ -6,12 +6,11 @@ use cortex_m_semihosting::hprintln;
 use piezo_drive::controller::model_cache::{FrequencyChoice, ModelRequest, ModelTable};
 use piezo_drive::controller::{Controller, Inputs, DAC_SAMPLES_PER_STEP};
 use piezo_drive::defaults::controller_config;
-use piezo_drive::gcs::{Board, Gcs, LoopStats, Pending, Reply};
 use piezo_drive::generator::QuadratureGenerator;
-use piezo_drive::recorder::{trigger, Recorder, DEPTH};
+use piezo_drive::recorder::{trigger, DEPTH};
 use piezo_drive::Fx;
 
-use crate::{calibrate, counts, Stat};
+use crate::{calibrate, counts, Stat, RECORDER};
 
 static mut HALF: [u32; 2 * DAC_SAMPLES_PER_STEP] = [0; 2 * DAC_SAMPLES_PER_STEP];
 
@@ -234,10 +233,46 @@ pub fn hot_paths() {
     inverse.print("MotorConstants::voltage_for (inverse model, cold start)", k);
     speed.print("ThrustPoint::speed_at_load_mm_s (false position)", k);
     thrust.print("ThrustPoint::thrust_n (one model evaluation)", k);
-    gcs_lock_times(&ctl, k);
+    // How long each GCS command holds the tick off: `host-sim pil --gcs-locks`; here the parts
+    // of its locked sections that are the controller's own code.
+    lock_parts(k);
 }
 
-static RECORDER: Recorder = Recorder::new();
+/// The controller code inside the GCS commands' locked sections (`src/gcs/lock.rs`):
+/// `Controller::set_config` (the settings commands) and its `validate_settings`, and
+/// `Controller::thrust_limits` (`XTM?`'s snapshot) when no model table fits the preload yet (the
+/// model task has not built one), which `host-sim pil --gcs-locks` cannot reach (the PIL image
+/// builds the table right after the tick that asks for it).
+fn lock_parts(k: f32) {
+    let cfg = controller_config();
+    let mut ctl = Controller::new(cfg).unwrap();
+    let inputs = Inputs { preload_word: (16.0 / cfg.preload.newton_per_word) as u16, ..Default::default() };
+    for _ in 0..200 {
+        ctl.step(&inputs);
+    }
+    let mut cold = Stat::new();
+    for _ in 0..50 {
+        cold.add(counts(|| {
+            core::hint::black_box(core::hint::black_box(&ctl).thrust_limits());
+        }));
+    }
+    cold.print("Controller::thrust_limits, no model table yet (XTM?'s snapshot)", k);
+    let mut valid = Stat::new();
+    let mut set = Stat::new();
+    let mut other = cfg;
+    other.velocity_max_nm_s *= 0.9;
+    for i in 0..50 {
+        let new = if i % 2 == 0 { other } else { cfg };
+        valid.add(counts(|| {
+            core::hint::black_box(piezo_drive::controller::validate_settings(core::hint::black_box(&new))).ok();
+        }));
+        set.add(counts(|| {
+            core::hint::black_box(ctl.set_config(core::hint::black_box(new))).ok();
+        }));
+    }
+    valid.print("validate_settings", k);
+    set.print("Controller::set_config, VEL changed (the settings commands' second lock)", k);
+}
 
 /// The data recorder's share of the tick (`Recorder::sample` after the step, as the firmware's
 /// tick calls it): no table recording, then all eight recording a point every tick (`RTR 1`,
@@ -257,89 +292,6 @@ fn recorder_sample(ctl: &Controller, k: f32) {
         full.add(counts(|| RECORDER.sample(core::hint::black_box(ctl))));
     }
     full.print("Recorder::sample, 8 tables recording every tick (RTR 1)", k);
-}
-
-struct NoBoard;
-impl Board for NoBoard {
-    fn store_parameters(&mut self, _: &piezo_drive::controller::ControllerConfig) -> bool {
-        true
-    }
-    fn serial_number(&self) -> u32 {
-        1
-    }
-    fn loop_stats(&self) -> LoopStats {
-        LoopStats::default()
-    }
-}
-
-static mut REPLY: Reply = Reply::new();
-
-/// Issue 16, item 2: how long each kind of GCS command keeps the control tick masked on the
-/// firmware. A read-only command holds the lock only for `Controller::clone` and formats the
-/// reply on the copy; a command that changes the controller runs `execute` under the lock (here on
-/// a copy each time, so every run starts from the same state).
-fn gcs_lock_times(ctl: &Controller, k: f32) {
-    hprintln!("Controller: {} bytes", core::mem::size_of::<Controller>());
-    let mut copy = Stat::new();
-    for _ in 0..200 {
-        copy.add(counts(|| {
-            core::hint::black_box(core::hint::black_box(ctl).clone());
-        }));
-    }
-    copy.print("under the lock for any query: Controller::clone", k);
-    // SAFETY: single-threaded; the only reference to REPLY.
-    let reply = unsafe { &mut *core::ptr::addr_of_mut!(REPLY) };
-    let lines: [&[u8]; 12] = [
-        b"SPA?",
-        b"HPA?",
-        b"HLP?",
-        b"POS?",
-        b"XTM?",
-        b"SPA 1 0x0A 0.01",
-        b"VEL 1 2.5",
-        b"MOV 1 0.5",
-        b"SVO 1 1",
-        b"STP",
-        b"SPA 1 0x0A 0.01 1 0x0A 0.02 1 0x0A 0.03 1 0x0A 0.04 1 0x0A 0.05 1 0x0A 0.06 1 0x0A 0.07 1 0x0A 0.08 1 0x0A 0.09 1 0x0A 0.1",
-        b"XYZ",
-    ];
-    for line in lines {
-        let mut l = heapless::Vec::new();
-        let _ = l.extend_from_slice(line);
-        let p = Pending::Line(l);
-        let read_only = Gcs::is_read_only(&p);
-        let mut whole = Stat::new();
-        for _ in 0..20 {
-            let mut gcs = Gcs::new();
-            let mut c = ctl.clone();
-            reply.clear();
-            whole.add(counts(|| gcs.execute(&p, &mut c, &mut NoBoard, reply)));
-        }
-        let name = core::str::from_utf8(line).unwrap_or("?");
-        if read_only {
-            hprintln!("  {} (read-only: only the clone is locked), execute:", name);
-            whole.print("    execute", k);
-        } else if Gcs::is_settings_only(&p) {
-            hprintln!("  {} (settings: executed on a copy, set_config locked):", name);
-            whole.print("    execute", k);
-            let mut gcs = Gcs::new();
-            let mut c = ctl.clone();
-            reply.clear();
-            gcs.execute(&p, &mut c, &mut NoBoard, reply);
-            let new = *c.config();
-            let mut locked = Stat::new();
-            for _ in 0..20 {
-                let mut real = ctl.clone();
-                locked.add(counts(|| {
-                    core::hint::black_box(real.set_config(new)).ok();
-                }));
-            }
-            locked.print("    set_config (the locked part; the clone is the other)", k);
-        } else {
-            hprintln!("  {} (changes the controller: all of execute is locked):", name);
-            whole.print("    execute", k);
-        }
-    }
 }
 
 /// Instructions and accuracy of the core's `sqrt_f32` (VSQRT) and micromath's `sqrt` over

@@ -15,6 +15,7 @@
 mod counts;
 
 use core::panic::PanicInfo;
+use core::sync::atomic::{compiler_fence, Ordering};
 
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;
@@ -23,7 +24,11 @@ use cortex_m_semihosting::{debug, hprintln, syscall};
 use piezo_drive::controller::model_cache::ModelTable;
 use piezo_drive::controller::{Controller, DAC_SAMPLES_PER_STEP};
 use piezo_drive::defaults::controller_config;
-use piezo_drive::pil_wire::{self, Command, Reply, REPLY_BYTES, TICK_BYTES};
+use piezo_drive::gcs::{Board, Gcs, LoopStats, SharedController};
+use piezo_drive::pil_wire::{
+    self, Command, GcsReport, Reply, GCS_MAX_BYTES, GCS_SECTIONS, REPLY_BYTES, TICK_BYTES,
+};
+use piezo_drive::recorder::Recorder;
 
 /// SysTick counts of `f`, down-counter with a 24-bit reload.
 pub fn counts(f: impl FnOnce()) -> u32 {
@@ -97,6 +102,119 @@ fn write_all(fd: usize, buf: &[u8]) -> bool {
     unsafe { syscall!(WRITE, fd, buf.as_ptr(), buf.len()) == 0 }
 }
 
+/// The data recorder, as the firmware's `RECORDER`: a point after each tick (outside the tick's
+/// count here), configured and read by the GCS commands.
+pub static RECORDER: Recorder = Recorder::new();
+
+/// The protocol's view of this target, as the firmware's `FwBoard` (`src/firmware/uart.rs`).
+/// `WPA` hands the settings over as the firmware's `params_flash::request_store` does: a copy
+/// into a static under a critical section (the firmware's `Signal`), nothing more under the lock.
+struct PilBoard;
+
+static mut STORED: Option<piezo_drive::controller::ControllerConfig> = None;
+
+impl Board for PilBoard {
+    fn store_parameters(&mut self, cfg: &piezo_drive::controller::ControllerConfig) -> bool {
+        cortex_m::interrupt::free(|_| {
+            // SAFETY: single-threaded, inside a critical section.
+            unsafe { *core::ptr::addr_of_mut!(STORED) = Some(*cfg) };
+        });
+        true
+    }
+    fn serial_number(&self) -> u32 {
+        1
+    }
+    fn loop_stats(&self) -> LoopStats {
+        LoopStats::default()
+    }
+    fn recorder(&self) -> Option<&Recorder> {
+        Some(&RECORDER)
+    }
+}
+
+/// The controller with every locked section counted: what runs inside `lock` is what runs with
+/// the firmware's tick masked (`src/firmware/uart.rs` locks the same way).
+struct Metered<'a> {
+    ctl: &'a mut Controller,
+    sections: u8,
+    section_counts: [u32; GCS_SECTIONS],
+}
+
+impl SharedController for Metered<'_> {
+    fn lock<R>(&mut self, f: impl FnOnce(&mut Controller) -> R) -> Option<R> {
+        let mut r = None;
+        let ctl = &mut *self.ctl;
+        // As the firmware's `TickLock::lock`: compiler fences around the section; and the
+        // section's result and the controller made observable before the count stops, so that
+        // no copy into the result is left for after it.
+        compiler_fence(Ordering::SeqCst);
+        let c = counts(|| {
+            r = Some(f(&mut *ctl));
+            core::hint::black_box(&r);
+            core::hint::black_box(&*ctl);
+        });
+        compiler_fence(Ordering::SeqCst);
+        if let Some(slot) = self.section_counts.get_mut(usize::from(self.sections)) {
+            *slot = c;
+        }
+        self.sections = self.sections.saturating_add(1);
+        r
+    }
+}
+
+/// A point for the recorder (kept out of `pil`'s loop, whose tick code stays as it was).
+#[inline(never)]
+fn record(ctl: &Controller) {
+    RECORDER.sample(ctl);
+}
+
+static mut GCS_REPLY: piezo_drive::gcs::Reply = piezo_drive::gcs::Reply::new();
+static mut GCS: Option<Gcs> = None;
+static mut GCS_BYTES: [u8; GCS_MAX_BYTES] = [0; GCS_MAX_BYTES];
+
+/// Reads a GCS frame's `len` command bytes, runs them and answers with the report; false when
+/// the host has gone. Out of line, so that `pil`'s tick code is what it was without it.
+#[inline(never)]
+fn gcs_frame(fd_in: usize, fd_out: usize, len: usize, ctl: &mut Controller, k: f32) -> bool {
+    // SAFETY: single-threaded; the only references to these statics.
+    let (gcs, bytes) = unsafe {
+        (
+            (*core::ptr::addr_of_mut!(GCS)).get_or_insert_with(Gcs::new),
+            &mut (&mut *core::ptr::addr_of_mut!(GCS_BYTES))[..len.min(GCS_MAX_BYTES)],
+        )
+    };
+    if !read_exact(fd_in, bytes) {
+        return false;
+    }
+    let report = run_gcs(gcs, ctl, bytes, k);
+    write_all(fd_out, &pil_wire::encode_gcs_report(&report))
+}
+
+/// One GCS frame's bytes through the protocol, as the firmware's UART task runs them.
+fn run_gcs(gcs: &mut Gcs, ctl: &mut Controller, bytes: &[u8], k: f32) -> GcsReport {
+    // SAFETY: single-threaded; the only reference to GCS_REPLY.
+    let reply = unsafe { &mut *core::ptr::addr_of_mut!(GCS_REPLY) };
+    reply.clear();
+    let mut board = PilBoard;
+    let mut shared = Metered { ctl, sections: 0, section_counts: [0; GCS_SECTIONS] };
+    let mut report = GcsReport::default();
+    let mut total = 0u32;
+    for &byte in bytes {
+        let Some(pending) = gcs.push_byte(byte) else { continue };
+        report.commands = report.commands.saturating_add(1);
+        total += counts(|| gcs.execute_shared(&pending, &mut shared, &mut board, reply));
+    }
+    report.sections = shared.sections;
+    for (r, c) in report.section_instructions.iter_mut().zip(shared.section_counts) {
+        *r = (c as f32 * k) as u32;
+    }
+    report.total_instructions = (total as f32 * k) as u32;
+    report.error = gcs.latched_error();
+    report.reply_len = reply.len() as u32;
+    report.reply_crc = piezo_drive::storage::crc32(reply);
+    report
+}
+
 /// The DMA half-buffer the tick refills: DHR12RD words, channel 2 in the upper half.
 static mut HALF: [u32; 2 * DAC_SAMPLES_PER_STEP] = [0; 2 * DAC_SAMPLES_PER_STEP];
 
@@ -108,6 +226,12 @@ fn pil(fd_in: usize, fd_out: usize, k: f32) {
     let mut frame = [0u8; TICK_BYTES];
     let mut half = 0usize;
     while read_exact(fd_in, &mut frame) {
+        if let Some(len) = pil_wire::decode_gcs_header(&frame) {
+            if !gcs_frame(fd_in, fd_out, len, &mut ctl, k) {
+                return;
+            }
+            continue;
+        }
         let Some(tick) = pil_wire::decode_tick(&frame) else {
             hprintln!("pil: bad frame");
             return;
@@ -137,6 +261,8 @@ fn pil(fd_in: usize, fd_out: usize, k: f32) {
             .max(1),
             None => 0,
         };
+        // The firmware's tick records after the step; here outside the tick's count.
+        record(&ctl);
         let Some(outputs) = out else { return };
         let reply = Reply {
             outputs,
