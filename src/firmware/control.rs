@@ -7,7 +7,8 @@
 //! started in the same critical section, so the tick is phase-locked to the DMA for good: it comes
 //! [`TICK_OFFSET_SAMPLES`] samples after the DMA crosses into a half.
 //!
-//! One tick, in this order:
+//! One tick, in this order (the sequence itself is core code, `piezo_drive::safety::tick`, run
+//! by the host tests over a simulated board; this file binds it to the registers):
 //! 1. **Refill first**: the samples the *previous* tick computed go into the half the DMA is not
 //!    reading (found from NDTR), through the soft start (`piezo_drive::safety::soft_start`: rest
 //!    word while the enable is low, a 20 ms ramp after it goes high), and the amplifier enable is
@@ -47,12 +48,13 @@ use embassy_stm32::pac;
 use embassy_stm32::peripherals::{TIM5, TIM7};
 use embassy_stm32::timer::low_level::Timer;
 use embassy_stm32::Peri;
-use piezo_drive::controller::{Controller, FaultCode, Inputs, DAC_SAMPLES_PER_STEP};
+use piezo_drive::controller::Controller;
 use piezo_drive::gcs::LoopStats;
 use piezo_drive::recorder::Recorder;
 use piezo_drive::safety::fault_record::FaultKind;
 use piezo_drive::safety::soft_start::SoftStart;
-use piezo_drive::safety::timing::{DeadlineMonitor, LeakyBucket, OverrunSupervisor};
+use piezo_drive::safety::tick::{Samples, Tick, TickBoard};
+use piezo_drive::safety::timing::{DeadlineMonitor, LeakyBucket, OverrunSupervisor, TickTiming, Verdict};
 
 use super::drive::Drive;
 use super::encoder::{Encoder, INDEX_LATCH};
@@ -116,11 +118,6 @@ pub static CONTROLLER: TickLock<Option<Controller>> = TickLock::new(None);
 /// step, the UART task reads it without a lock (atomics, see `piezo_drive::recorder`); the
 /// commands that reconfigure or trigger it run with the controller locked, so never during a tick.
 pub static RECORDER: Recorder = Recorder::new();
-/// Ticks without a new preload sample after which the tick hands the core an invalid word
-/// (20 ms, twenty missed 1 kHz samples): a stuck ADC task becomes the core's preload-sensor fault
-/// instead of a frozen force reading, while the watchdogs only watch the tick.
-const PRELOAD_STALE_TICKS: u32 = 200;
-
 /// Drive parking, for the flash store (`params_flash.rs`): while `PARK_REQUEST` is set the tick
 /// keeps the enable low and writes rest words; `PARKED_TICKS` counts the ticks it has done so.
 pub static PARK_REQUEST: AtomicBool = AtomicBool::new(false);
@@ -147,52 +144,81 @@ const FIRST_DUE_COUNTS: u32 = TICK_OFFSET_SAMPLES * SAMPLE_COUNTS;
 /// time, less one sample of margin.
 const REFILL_DEADLINE_COUNTS: u32 = (ring::HALF as u32 - TICK_OFFSET_SAMPLES - 1) * SAMPLE_COUNTS;
 
-impl TickCtx {
-    /// The latest preload word, or `u16::MAX` once the ADC task has delivered nothing new for
-    /// [`PRELOAD_STALE_TICKS`]: outside the 12-bit ADC's range, so outside any calibration window
-    /// that matches the ADC (the default is 0–4095).
-    fn fresh_preload_word(&mut self) -> u16 {
-        let packed = PRELOAD_WORD.load(Ordering::Relaxed);
-        let seq = (packed >> 16) as u16;
-        if seq != self.preload_seq {
-            self.preload_seq = seq;
-            self.preload_age_ticks = 0;
-        } else {
-            self.preload_age_ticks = self.preload_age_ticks.saturating_add(1);
-        }
-        if self.preload_age_ticks > PRELOAD_STALE_TICKS {
-            u16::MAX
-        } else {
-            packed as u16
-        }
-    }
-
-    /// The count latched at an index edge since the last tick, if any.
-    fn index_edge(&mut self) -> Option<u16> {
-        let packed = INDEX_LATCH.load(Ordering::Relaxed);
-        let seq = (packed >> 16) as u16;
-        if seq == self.index_seq {
-            return None;
-        }
-        self.index_seq = seq;
-        Some(packed as u16)
-    }
+/// What only the tick touches: the peripherals it drives and reads, and the tick's own state.
+pub struct TickCtx {
+    hw: TickHw,
+    tick: Tick,
 }
 
-/// What only the tick touches.
-pub struct TickCtx {
+/// The peripherals of the tick, as [`TickBoard`] for the core's [`Tick`].
+pub struct TickHw {
     pub drive: Drive,
     pub encoder: Encoder,
     pub amp_enable: Output<'static>,
-    /// Schedule, overrun bucket and latch (`piezo_drive::safety::timing`).
-    overrun: OverrunSupervisor,
-    soft: SoftStart,
-    /// The samples and enable the last step computed, for this tick's refill.
-    pending: [[u16; 2]; DAC_SAMPLES_PER_STEP],
-    pending_enable: bool,
-    preload_seq: u16,
-    preload_age_ticks: u32,
-    index_seq: u16,
+    /// DWT cycle count at the tick's entry, for the step's cost.
+    entry_cycles: u32,
+}
+
+impl TickBoard for TickHw {
+    fn timebase(&mut self) -> u32 {
+        timebase()
+    }
+    fn dma_half(&mut self) -> usize {
+        self.drive.dma_half()
+    }
+    fn write_half(&mut self, half: usize, samples: &Samples) {
+        self.drive.write_half(half, samples);
+    }
+    fn set_enable(&mut self, on: bool) {
+        self.amp_enable.set_level(on.into());
+    }
+    fn park_requested(&mut self) -> bool {
+        PARK_REQUEST.load(Ordering::Relaxed)
+    }
+    fn parked(&mut self, parked: bool) {
+        if parked {
+            PARKED_TICKS.store(PARKED_TICKS.load(Ordering::Relaxed).saturating_add(1), Ordering::Relaxed);
+        } else {
+            PARKED_TICKS.store(0, Ordering::Relaxed);
+        }
+    }
+    fn note_timing(&mut self, timing: &TickTiming, verdict: &Verdict) {
+        if timing.latency > LATENCY_MAX.load(Ordering::Relaxed) {
+            LATENCY_MAX.store(timing.latency, Ordering::Relaxed);
+        }
+        if verdict.late {
+            bump(&OVERRUNS);
+        }
+    }
+    fn record_overrun(&mut self, detail: [u32; 8]) {
+        bump(&OVERRUN_TRIPS);
+        super::safety::record_fault(FaultKind::Overrun, detail);
+    }
+    fn encoder_raw(&mut self) -> u16 {
+        self.encoder.raw()
+    }
+    fn preload_sample(&mut self) -> (u16, u16) {
+        let packed = PRELOAD_WORD.load(Ordering::Relaxed);
+        ((packed >> 16) as u16, packed as u16)
+    }
+    fn index_latch(&mut self) -> (u16, u16) {
+        let packed = INDEX_LATCH.load(Ordering::Relaxed);
+        ((packed >> 16) as u16, packed as u16)
+    }
+    fn after_step(&mut self, controller: Option<&Controller>) {
+        if let Some(c) = controller {
+            RECORDER.sample(c);
+        }
+        let cycles = DWT::cycle_count().wrapping_sub(self.entry_cycles);
+        STEP_CYCLES_LAST.store(cycles, Ordering::Relaxed);
+        if cycles > STEP_CYCLES_MAX.load(Ordering::Relaxed) {
+            STEP_CYCLES_MAX.store(cycles, Ordering::Relaxed);
+        }
+        super::safety::count_tick();
+    }
+    fn feed_watchdogs(&mut self) {
+        super::safety::feed_watchdogs();
+    }
 }
 
 /// Set up by `start` (TIM7 interrupt still off), then used by the tick alone.
@@ -247,24 +273,20 @@ pub fn start(
 
     let _ = TICK.lock(|tick| {
         let ctx = tick.insert(TickCtx {
-            drive,
-            encoder,
-            amp_enable,
-            overrun: OverrunSupervisor::new(
-                DeadlineMonitor::new(FIRST_DUE_COUNTS, TICK_COUNTS, REFILL_DEADLINE_COUNTS),
-                OVERRUN_BUCKET,
+            hw: TickHw { drive, encoder, amp_enable, entry_cycles: 0 },
+            tick: Tick::new(
+                OverrunSupervisor::new(
+                    DeadlineMonitor::new(FIRST_DUE_COUNTS, TICK_COUNTS, REFILL_DEADLINE_COUNTS),
+                    OVERRUN_BUCKET,
+                ),
+                SoftStart::new(AMP_REST_WORD, SOFT_START_SAMPLES),
+                (INDEX_LATCH.load(Ordering::Relaxed) >> 16) as u16,
             ),
-            soft: SoftStart::new(AMP_REST_WORD, SOFT_START_SAMPLES),
-            pending: [[AMP_REST_WORD; 2]; DAC_SAMPLES_PER_STEP],
-            pending_enable: false,
-            preload_seq: 0,
-            preload_age_ticks: 0,
-            index_seq: (INDEX_LATCH.load(Ordering::Relaxed) >> 16) as u16,
         });
         let preset = ring::tick_preset(TICK_COUNTS, FIRST_DUE_COUNTS);
         // The three counters start within a few cycles of each other (in one critical section);
         // from then on they share a clock.
-        ctx.drive.start_with(|| {
+        ctx.hw.drive.start_with(|| {
             pac::TIM7.cnt().write(|w| w.set_cnt(preset as u16));
             pac::TIM5.cr1().modify(|w| w.set_cen(true));
             pac::TIM7.cr1().modify(|w| w.set_cen(true));
@@ -293,95 +315,6 @@ fn TIM7_DAC() {
     // SAFETY: this is the tick.
     let (tick, controller) = unsafe { (TICK.in_tick(), CONTROLLER.in_tick()) };
     let Some(t) = tick.as_mut() else { return };
-    let start = DWT::cycle_count();
-    let timing = t.overrun.begin(entry);
-
-    // 1. Refill first, with what the last step computed.
-    let parked = PARK_REQUEST.load(Ordering::Relaxed);
-    let enable = t.overrun.enable(t.pending_enable, parked);
-    if !enable {
-        t.amp_enable.set_low();
-    }
-    let half = 1 - (t.drive.dma_half() & 1);
-    t.soft.apply(enable, &mut t.pending);
-    t.drive.write_half(half, &t.pending);
-    t.amp_enable.set_level(enable.into());
-    let refilled = timebase();
-    let verdict = t.overrun.judge(&timing, refilled, t.drive.dma_half() == half);
-    if parked {
-        PARKED_TICKS.store(PARKED_TICKS.load(Ordering::Relaxed).saturating_add(1), Ordering::Relaxed);
-    } else {
-        PARKED_TICKS.store(0, Ordering::Relaxed);
-    }
-
-    // 2. Lateness: the bucket's verdict, and its latched fault.
-    if timing.latency > LATENCY_MAX.load(Ordering::Relaxed) {
-        LATENCY_MAX.store(timing.latency, Ordering::Relaxed);
-    }
-    if verdict.late {
-        bump(&OVERRUNS);
-    }
-    if verdict.tripped_now {
-        t.amp_enable.set_low();
-        bump(&OVERRUN_TRIPS);
-        if let Some(c) = controller.as_mut() {
-            c.trip_external(FaultCode::Overrun);
-        }
-        super::safety::record_fault(
-            FaultKind::Overrun,
-            [
-                timing.latency,
-                timing.missed,
-                t.overrun.bucket_level(),
-                refilled.wrapping_sub(timing.due),
-                0,
-                0,
-                0,
-                0,
-            ],
-        );
-    } else if let Some(c) = controller.as_ref() {
-        // The latch clears once the host has cleared every fault (SVO).
-        t.overrun.controller_fault_active(c.fault().is_some());
-    }
-
-    // 3. The step, for the next tick's refill.
-    let index_raw = t.index_edge();
-    #[allow(clippy::needless_update)]
-    let inputs = Inputs {
-        encoder_raw: t.encoder.raw(),
-        preload_word: t.fresh_preload_word(),
-        index: index_raw.is_some(),
-        index_raw,
-        ..Default::default()
-    };
-    match controller.as_mut().map(|c| c.step(&inputs)) {
-        Some(out) => {
-            t.pending = out.dac;
-            t.pending_enable = out.amp_enable;
-        }
-        None => {
-            t.pending = [[AMP_REST_WORD; 2]; DAC_SAMPLES_PER_STEP];
-            t.pending_enable = false;
-        }
-    }
-    if !t.pending_enable {
-        // A fault drops the enable now, not at the next refill.
-        t.amp_enable.set_low();
-    }
-    if let Some(c) = controller.as_ref() {
-        RECORDER.sample(c);
-    }
-
-    let cycles = DWT::cycle_count().wrapping_sub(start);
-    STEP_CYCLES_LAST.store(cycles, Ordering::Relaxed);
-    if cycles > STEP_CYCLES_MAX.load(Ordering::Relaxed) {
-        STEP_CYCLES_MAX.store(cycles, Ordering::Relaxed);
-    }
-    super::safety::count_tick();
-
-    // 4. Watchdogs: only an on-time tick feeds them.
-    if verdict.feed_watchdogs {
-        super::safety::feed_watchdogs();
-    }
+    t.hw.entry_cycles = DWT::cycle_count();
+    t.tick.run(&mut t.hw, controller.as_mut(), entry);
 }

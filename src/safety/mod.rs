@@ -8,11 +8,13 @@
 //! - [`fault_record`]: the last fault kept in no-init RAM across a reset (magic + CRC-32);
 //! - [`probe`]: a floating (unconnected) preload input, from readings after weak pulls;
 //! - [`watchdog`]: window-watchdog reload values from a timeout;
-//! - [`flash_ecc`]: whether a flash ECC error hit the parameter page.
+//! - [`flash_ecc`]: whether a flash ECC error hit the parameter pages;
+//! - [`tick`]: the control tick's order of operations over the board's peripherals.
 
 pub mod fault_record;
 pub mod flash_ecc;
 pub mod probe;
 pub mod soft_start;
+pub mod tick;
 pub mod timing;
 pub mod watchdog;

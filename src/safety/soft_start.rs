@@ -46,7 +46,7 @@ impl SoftStart {
         self.done_samples >= self.ramp_samples
     }
 
-    pub fn rest(&self) -> u16 {
+    pub const fn rest(&self) -> u16 {
         self.rest
     }
 }

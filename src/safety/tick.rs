@@ -1,0 +1,192 @@
+//! The control tick's order of operations, over the board's peripherals ([`TickBoard`]), so that
+//! the host tests run the very sequence the firmware's TIM7 handler runs (`tests/tick.rs`):
+//!
+//! 1. **Refill first**: the samples the previous step computed go into the ring half the DMA is
+//!    not reading, through the soft start; the enable is set for them (low at once when the
+//!    controller, a latched overrun or parking wants it low).
+//! 2. **Lateness**: the overrun supervisor judges the tick (deadline, missed periods, the DMA
+//!    already in the half just written); a trip drops the enable at once, latches the
+//!    controller's `Overrun` fault and records it.
+//! 3. **Step**: encoder count, preload word (an invalid word once the ADC has gone quiet for
+//!    [`PRELOAD_STALE_TICKS`]), index latch → `Controller::step`; its samples wait for the next
+//!    tick; a dropped enable in its outputs drops the pin at once.
+//! 4. **Watchdogs**: fed only by a tick that was on time.
+//!
+//! The firmware's handler (`src/firmware/control.rs`) only binds the registers to
+//! [`TickBoard`] and calls [`Tick::run`].
+
+use super::soft_start::SoftStart;
+use super::timing::{OverrunSupervisor, TickTiming, Verdict};
+use crate::controller::{Controller, FaultCode, Inputs, DAC_SAMPLES_PER_STEP};
+
+/// One period's DAC words, both channels.
+pub type Samples = [[u16; 2]; DAC_SAMPLES_PER_STEP];
+
+/// Ticks without a new preload sample after which the tick hands the core an invalid word (20 ms
+/// at 10 kHz, twenty missed 1 kHz samples): a stuck ADC task becomes the core's preload-sensor
+/// fault instead of a frozen force reading, while the watchdogs only watch the tick.
+pub const PRELOAD_STALE_TICKS: u32 = 200;
+
+/// The preload word the controller gets for a stale reading: outside the 12-bit ADC's range, so
+/// outside any calibration window that matches the ADC.
+pub const STALE_PRELOAD_WORD: u16 = u16::MAX;
+
+/// What the tick needs of the board, in the order it asks.
+pub trait TickBoard {
+    /// The free-running timebase (core clock counts, wraps).
+    fn timebase(&mut self) -> u32;
+    /// The ring half (0 or 1) the DMA reads now.
+    fn dma_half(&mut self) -> usize;
+    fn write_half(&mut self, half: usize, samples: &Samples);
+    /// The amplifier enable pin.
+    fn set_enable(&mut self, on: bool);
+    /// The flash store asks for the drive parked (enable low, rest words).
+    fn park_requested(&mut self) -> bool;
+    /// This tick ran parked (or not).
+    fn parked(&mut self, parked: bool);
+    /// Lateness figures for the statistics (every tick).
+    fn note_timing(&mut self, timing: &TickTiming, verdict: &Verdict);
+    /// The overrun bucket tripped: record the fault with these detail words.
+    fn record_overrun(&mut self, detail: [u32; 8]);
+    fn encoder_raw(&mut self) -> u16;
+    /// The preload ADC's last sample: (sequence number, word).
+    fn preload_sample(&mut self) -> (u16, u16);
+    /// The index latch: (sequence number of the last edge, count at it).
+    fn index_latch(&mut self) -> (u16, u16);
+    /// After the step: the data recorder's point and the step's cost.
+    fn after_step(&mut self, controller: Option<&Controller>);
+    fn feed_watchdogs(&mut self);
+}
+
+/// The tick's own state between periods.
+#[derive(Debug, Clone, Copy)]
+pub struct Tick {
+    overrun: OverrunSupervisor,
+    soft: SoftStart,
+    /// The samples and enable the last step computed, for this tick's refill.
+    pending: Samples,
+    pending_enable: bool,
+    preload_seq: u16,
+    preload_age_ticks: u32,
+    index_seq: u16,
+}
+
+impl Tick {
+    /// `index_seq`: the index latch's sequence number now (edges before the start are old).
+    pub const fn new(overrun: OverrunSupervisor, soft: SoftStart, index_seq: u16) -> Self {
+        let rest = soft.rest();
+        Tick {
+            overrun,
+            soft,
+            pending: [[rest; 2]; DAC_SAMPLES_PER_STEP],
+            pending_enable: false,
+            preload_seq: 0,
+            preload_age_ticks: 0,
+            index_seq,
+        }
+    }
+
+    /// One tick, entered at timebase reading `entry`.
+    pub fn run(&mut self, board: &mut impl TickBoard, mut controller: Option<&mut Controller>, entry: u32) {
+        let timing = self.overrun.begin(entry);
+
+        // 1. Refill first, with what the last step computed.
+        let parked = board.park_requested();
+        let enable = self.overrun.enable(self.pending_enable, parked);
+        if !enable {
+            board.set_enable(false);
+        }
+        let half = 1 - (board.dma_half() & 1);
+        self.soft.apply(enable, &mut self.pending);
+        board.write_half(half, &self.pending);
+        board.set_enable(enable);
+        let refilled = board.timebase();
+        let verdict = self.overrun.judge(&timing, refilled, board.dma_half() == half);
+        board.parked(parked);
+
+        // 2. Lateness: the bucket's verdict, and its latched fault.
+        board.note_timing(&timing, &verdict);
+        if verdict.tripped_now {
+            board.set_enable(false);
+            if let Some(c) = controller.as_deref_mut() {
+                c.trip_external(FaultCode::Overrun);
+            }
+            let detail = [
+                timing.latency,
+                timing.missed,
+                self.overrun.bucket_level(),
+                refilled.wrapping_sub(timing.due),
+                0,
+                0,
+                0,
+                0,
+            ];
+            board.record_overrun(detail);
+        } else if let Some(c) = controller.as_deref() {
+            // The latch clears once the host has cleared every fault (SVO).
+            self.overrun.controller_fault_active(c.fault().is_some());
+        }
+
+        // 3. The step, for the next tick's refill.
+        let index_raw = self.index_edge(board.index_latch());
+        let preload_word = self.fresh_preload_word(board.preload_sample());
+        #[allow(clippy::needless_update)]
+        let inputs = Inputs {
+            encoder_raw: board.encoder_raw(),
+            preload_word,
+            index: index_raw.is_some(),
+            index_raw,
+            ..Default::default()
+        };
+        match controller.as_deref_mut().map(|c| c.step(&inputs)) {
+            Some(out) => {
+                self.pending = out.dac;
+                self.pending_enable = out.amp_enable;
+            }
+            None => {
+                self.pending = [[self.soft.rest(); 2]; DAC_SAMPLES_PER_STEP];
+                self.pending_enable = false;
+            }
+        }
+        if !self.pending_enable {
+            // A fault drops the enable now, not at the next refill.
+            board.set_enable(false);
+        }
+        board.after_step(controller.as_deref());
+
+        // 4. Watchdogs: only an on-time tick feeds them.
+        if verdict.feed_watchdogs {
+            board.feed_watchdogs();
+        }
+    }
+
+    /// The latest preload word, or [`STALE_PRELOAD_WORD`] once the ADC has delivered nothing new
+    /// for [`PRELOAD_STALE_TICKS`].
+    fn fresh_preload_word(&mut self, (seq, word): (u16, u16)) -> u16 {
+        if seq != self.preload_seq {
+            self.preload_seq = seq;
+            self.preload_age_ticks = 0;
+        } else {
+            self.preload_age_ticks = self.preload_age_ticks.saturating_add(1);
+        }
+        if self.preload_age_ticks > PRELOAD_STALE_TICKS {
+            STALE_PRELOAD_WORD
+        } else {
+            word
+        }
+    }
+
+    /// The count latched at an index edge since the last tick, if any.
+    fn index_edge(&mut self, (seq, count): (u16, u16)) -> Option<u16> {
+        if seq == self.index_seq {
+            return None;
+        }
+        self.index_seq = seq;
+        Some(count)
+    }
+
+    /// The overrun latch (for the board's statistics and tests).
+    pub fn overrun_latched(&self) -> bool {
+        self.overrun.latched()
+    }
+}
