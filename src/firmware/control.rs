@@ -37,6 +37,7 @@
 //! `host-sim pil --gcs-locks` counts every locked section on the emulated M4.
 
 use core::cell::UnsafeCell;
+use core::mem::MaybeUninit;
 use core::sync::atomic::{compiler_fence, AtomicBool, AtomicU32, Ordering};
 
 use cortex_m::peripheral::scb::VectActive;
@@ -113,7 +114,39 @@ impl<T> TickLock<T> {
 }
 
 /// The controller, shared by the tick (every 100 µs) and the UART task (per command).
-pub static CONTROLLER: TickLock<Option<Controller>> = TickLock::new(None);
+pub static CONTROLLER: TickLock<Slot<Controller>> = TickLock::new(Slot::EMPTY);
+
+/// A value installed once at boot, empty until then. Unlike `Option<Controller>`, whose `None`
+/// is not all zero bytes and so put the controller's 3.5 KiB in `.data` (copied from flash at
+/// boot), an empty slot is zero and undefined bytes: it lives in `.bss` and costs no flash.
+pub struct Slot<T> {
+    ready: bool,
+    value: MaybeUninit<T>,
+}
+
+impl<T> Slot<T> {
+    const EMPTY: Self = Slot { ready: false, value: MaybeUninit::uninit() };
+
+    pub fn as_ref(&self) -> Option<&T> {
+        // SAFETY: `ready` is set only once `value` is written.
+        self.ready.then(|| unsafe { self.value.assume_init_ref() })
+    }
+
+    pub fn as_mut(&mut self) -> Option<&mut T> {
+        // SAFETY: as above.
+        self.ready.then(|| unsafe { self.value.assume_init_mut() })
+    }
+
+    /// Puts `value` in (dropping one installed before).
+    pub fn install(&mut self, value: T) {
+        if self.ready {
+            // SAFETY: ready, so initialised; it is overwritten right after.
+            unsafe { self.value.assume_init_drop() };
+        }
+        self.value.write(value);
+        self.ready = true;
+    }
+}
 /// The data recorder (11.5 KiB of points, zero-initialised): the tick stores a point after each
 /// step, the UART task reads it without a lock (atomics, see `piezo_drive::recorder`); the
 /// commands that reconfigure or trigger it run with the controller locked, so never during a tick.
@@ -235,7 +268,7 @@ pub fn loop_stats() -> LoopStats {
 
 /// Installs the controller.
 pub fn install_controller(ctl: Controller) {
-    let _ = CONTROLLER.lock(|c| *c = Some(ctl));
+    let _ = CONTROLLER.lock(|c| c.install(ctl));
 }
 
 /// Sets up TIM7 (the tick) and TIM5 (the free-running timebase) and starts both together with
