@@ -7,7 +7,6 @@ mod firmware;
 
 #[cfg(target_os = "none")]
 mod board {
-    use core::sync::atomic::Ordering;
     use defmt_rtt as _;
     use embassy_executor::Spawner;
 
@@ -17,11 +16,10 @@ mod board {
     use embassy_stm32::wdg::IndependentWatchdog;
     use embassy_stm32::{bind_interrupts, peripherals, rcc};
     use embassy_time::Timer;
-    use piezo_drive::controller::{Controller, FaultCode};
+    use piezo_drive::controller::Controller;
     use piezo_drive::defaults;
-    use piezo_drive::safety::fault_record::FaultKind;
 
-    use crate::firmware::{control, encoder, model, params_flash, preload, safety, uart};
+    use crate::firmware::{control, encoder, model, monitor, params_flash, preload, safety, uart};
 
     bind_interrupts!(struct Irqs {
         LPUART1 => usart::BufferedInterruptHandler<peripherals::LPUART1>;
@@ -150,62 +148,8 @@ mod board {
         safety::start_window_watchdog();
         // `wdg` is not fed from here on (it has no `Drop`; the IWDG keeps running).
 
-        // Every state change and fault of the controller goes to the log (and a fault into the
-        // no-init record); the loop statistics every 10 s.
-        let mut last_state = None;
-        let mut last_trips = 0;
-        let mut polls: u32 = 0;
-        loop {
-            Timer::after_millis(10).await;
-            let state = control::CONTROLLER.lock(|c| c.as_ref().map(|c| c.state())).flatten();
-            if state != last_state {
-                if let Some(s) = state {
-                    defmt::info!("controller state: {}", state_name(s));
-                    if let piezo_drive::controller::State::Fault(code) = s {
-                        defmt::error!("controller fault {}: {}", code as u32, code.text());
-                        if code != FaultCode::Overrun {
-                            safety::record_fault(FaultKind::Controller, [code as u32, 0, 0, 0, 0, 0, 0, 0]);
-                        }
-                    }
-                }
-                last_state = state;
-            }
-            let trips = control::OVERRUN_TRIPS.load(Ordering::Relaxed);
-            if trips != last_trips {
-                defmt::error!(
-                    "control loop overrun: amplifier disabled (trips {}, late ticks {}, worst start latency {} counts)",
-                    trips,
-                    control::loop_stats().overruns,
-                    control::LATENCY_MAX.load(Ordering::Relaxed)
-                );
-                last_trips = trips;
-            }
-            polls = polls.wrapping_add(1);
-            if polls % 1000 == 0 {
-                let s = control::loop_stats();
-                defmt::info!(
-                    "ticks {} step cycles last {} max {} late ticks {} overrun trips {} worst latency {}",
-                    safety::ticks(),
-                    s.step_cycles_last,
-                    s.step_cycles_max,
-                    s.overruns,
-                    trips,
-                    control::LATENCY_MAX.load(Ordering::Relaxed)
-                );
-            }
-        }
-    }
-
-    fn state_name(s: piezo_drive::controller::State) -> &'static str {
-        use piezo_drive::controller::State;
-        match s {
-            State::Idle => "idle",
-            State::Moving => "moving",
-            State::Holding => "holding",
-            State::Referencing => "referencing",
-            State::OpenLoop => "open-loop stepping",
-            State::Fault(_) => "fault",
-        }
+        // From here the log's view of the loop (state changes, faults, statistics) is a task.
+        spawn(&spawner, "monitor", spawner.spawn(monitor::monitor_task()));
     }
 
     fn spawn(_spawner: &Spawner, name: &str, r: Result<(), embassy_executor::SpawnError>) {

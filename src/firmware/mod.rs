@@ -45,6 +45,8 @@ pub mod drive_dma;
 #[cfg(target_os = "none")]
 pub mod encoder;
 #[cfg(target_os = "none")]
+pub mod monitor;
+#[cfg(target_os = "none")]
 pub mod params_flash;
 #[cfg(target_os = "none")]
 pub mod preload;
