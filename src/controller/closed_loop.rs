@@ -173,7 +173,7 @@ impl Controller {
     pub(super) fn speed_limit_nm_s(&self) -> f32 {
         let Some(t) = self.model.table.as_ref() else { return 0.0 };
         let dir = if self.profile.target_nm() >= self.profile.position_nm() { 1.0 } else { -1.0 };
-        let load = (dir * self.thrust_bias_n).max(-t.stall_n());
+        let load = (dir * self.load.estimate_n()).max(-t.stall_n());
         (t.speed_at_load_mm_s(load) * 1e6 * self.cfg.speed_fraction).min(self.cfg.velocity_max_nm_s)
     }
 
@@ -189,7 +189,7 @@ impl Controller {
         let mass = self.moving_mass_kg();
         let stall = self.cached_limits().map_or(0.0, |(f, _)| f);
         // Leave the load estimate's share of the thrust for the load.
-        let usable = (stall - self.thrust_bias_n.abs()).max(0.3 * stall);
+        let usable = (stall - self.load.estimate_n().abs()).max(0.3 * stall);
         usable / mass * 1e9 * self.cfg.accel_fraction
     }
 
@@ -201,7 +201,7 @@ impl Controller {
         let Some(t) = self.model.table.as_ref() else { return 0.0 };
         let v = self.profile.velocity_nm_s();
         let thrust = t.full_thrust_n(v.abs() * 1e-6);
-        let load = v.signum() * self.thrust_bias_n;
+        let load = v.signum() * self.load.estimate_n();
         let stall = t.stall_n();
         let usable = (thrust - load.max(0.0)).max(0.05 * stall);
         (usable / mass * 1e9 * self.cfg.accel_fraction).min(self.cfg.accel_max_nm_s2)

@@ -5,6 +5,7 @@ use super::open_loop::OpenLoopRun;
 use super::referencing::ReferenceSearch;
 use super::SpeedUp;
 use super::{validate_settings, Activity, CommandError, Controller, ControllerConfig, Mode, State};
+use super::{LoadObserverConfig, PlainPiConfig};
 use crate::sensors::PreloadCell;
 
 impl Controller {
@@ -27,12 +28,8 @@ impl Controller {
             || cfg.normal_force_ratio != c.normal_force_ratio
             || cfg.rail_coulomb_n != c.rail_coulomb_n
             || cfg.rail_viscous_n_s_per_m != c.rail_viscous_n_s_per_m;
-        if recalibrated {
-            self.observed_bias_n = cfg.expected_load_n;
-            self.integral_n = 0.0;
-            self.thrust_bias_n = cfg.expected_load_n;
-            self.end_bias_n = [None; 2];
-        }
+        self.load.configure(LoadObserverConfig::of(&cfg), recalibrated);
+        self.pi.configure(PlainPiConfig::of(&cfg));
         if cfg.preload != self.cfg.preload {
             // Re-primed by the next sample.
             self.preload = PreloadCell::new(cfg.preload);
@@ -86,7 +83,7 @@ impl Controller {
         }
         let preload_n = self.check_preload()?;
         self.forget_mass_off_its_preload(preload_n);
-        self.start_load_estimate(target_nm);
+        self.load.start_move(target_nm < self.position_nm());
         self.profile.set_target(target_nm);
         // The braking rate is fixed for the whole move: a braking curve that changed under the
         // profile's feet would arrive with speed left over. Without a model table yet it is 0,
@@ -112,43 +109,6 @@ impl Controller {
             self.mode = Mode::FineEntering;
         }
         Ok(())
-    }
-
-    /// The load estimate a move starts from. What the observer learns in a move is the load plus
-    /// the model's thrust error along the drive; the error changes sign with the drive, so an
-    /// estimate carried into a move the other way starts it with twice the error (ten
-    /// back-and-forth 1 mm moves, 1 kg carriage, plant μ 15 % below the table's: 0.71 µm peak
-    /// following error on the first, 2.0–2.2 on every later one). Once a move each way has
-    /// ended, the move starts from the mean of their end estimates: the load, which both share,
-    /// without the error.
-    fn start_load_estimate(&mut self, target_nm: i64) {
-        if !self.cfg.feedforward {
-            return;
-        }
-        if let Some(slot) = self.last_sense.and_then(|s| self.end_bias_n.get_mut(s)) {
-            *slot = Some(self.observed_bias_n + self.integral_n);
-        }
-        if let Some(common) = self.shared_load_n() {
-            self.observed_bias_n = common;
-            self.integral_n = 0.0;
-            self.thrust_bias_n = common;
-        }
-        self.last_sense = Some(usize::from(target_nm < self.position_nm()));
-    }
-
-    /// The load a move knows is real (N along +x): what the last moves each way share (the mean
-    /// of their end estimates, [`Self::start_load_estimate`]), else the told one. Braking counts
-    /// on it, not on the rest of the estimate.
-    pub(super) fn known_load_n(&self) -> f32 {
-        self.shared_load_n().unwrap_or(self.cfg.expected_load_n)
-    }
-
-    /// The mean of the end estimates of the last move each way (N along +x), once both exist.
-    fn shared_load_n(&self) -> Option<f32> {
-        match self.end_bias_n {
-            [Some(plus), Some(minus)] => Some(0.5 * (plus + minus)),
-            _ => None,
-        }
     }
 
     pub fn move_relative(&mut self, delta_nm: i64) -> Result<(), CommandError> {

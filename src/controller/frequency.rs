@@ -83,24 +83,15 @@ impl Controller {
         if self.state() == State::Moving {
             // The move's sense, not the side of the target the slider is on: an overshoot at
             // the end of a move must not flip the choice.
-            (self.move_sense() * self.thrust_bias_n).max(0.0)
+            (self.load.move_sense() * self.load.estimate_n()).max(0.0)
         } else {
-            self.thrust_bias_n.abs()
-        }
-    }
-
-    /// The sense of the last move commanded (+1 or −1 along x).
-    fn move_sense(&self) -> f32 {
-        if self.last_sense == Some(1) {
-            -1.0
-        } else {
-            1.0
+            self.load.estimate_n().abs()
         }
     }
 
     /// The slider's speed along the move (nm/s) and its lag behind the reference (nm).
     fn along_the_move(&self) -> (f32, f32) {
-        let sense = self.move_sense();
+        let sense = self.load.move_sense();
         let lag = (self.profile.position_nm() - self.position_nm()) as f32 * sense;
         (sense * self.speed_nm_s, lag)
     }

@@ -88,7 +88,7 @@ impl Controller {
             return;
         }
         let sense = v.signum();
-        let net_n = sense * (thrust_x_n - self.thrust_bias_n);
+        let net_n = sense * (thrust_x_n - self.load.estimate_n());
         s.t_s += self.dt_s;
         s.impulse_n_s += net_n * self.dt_s;
         let half = 0.5 * self.speed_limit_nm_s();

@@ -20,16 +20,20 @@ mod config;
 mod fine;
 mod frequency;
 mod frequency_choice;
+mod load_observer;
 mod mass;
 pub mod model_cache;
 mod open_loop;
+mod plain_pi;
 mod referencing;
 mod supervision;
 pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
 use fine::FineStep;
+use load_observer::{LoadObserver, LoadObserverConfig};
 use mass::SpeedUp;
 use model_cache::ModelSlot;
 use open_loop::OpenLoopRun;
+use plain_pi::{PlainPi, PlainPiConfig};
 use referencing::ReferenceSearch;
 
 /// DAC samples produced per control period (DAC rate / loop rate).
@@ -212,11 +216,10 @@ pub struct Controller {
     servo: bool,
     referenced: bool,
     dt_s: f32,
-    thrust_bias_n: f32,
-    /// Thrust-model branch: load correction integrated from position error (N).
-    integral_n: f32,
-    /// Plain-feedback branch: integral term (V, signed along +x).
-    integral_v: f32,
+    /// The load estimate the feedforward pushes against ([`load_observer`]).
+    load: LoadObserver,
+    /// The coarse mode's feedback without the model.
+    pi: PlainPi,
     fine_offset_v: f32,
     speed_nm_s: f32,
     on_target_s: f32,
@@ -231,12 +234,6 @@ pub struct Controller {
     /// Fine-mode corrections in a row the encoder missed (carried across fine-mode entries: a
     /// frozen encoder sends the fine mode out of stroke and back through the coarse mode).
     fine_misses: u32,
-    /// Load observer: thrust along +x the model says the motor gives, less M·a (N).
-    observed_bias_n: f32,
-    /// The load estimate (observer plus integral, N along +x) at the end of the last move each
-    /// way (+, −), and the sense of the last move.
-    end_bias_n: [Option<f32>; 2],
-    last_sense: Option<usize>,
     prev_speed_nm_s: f32,
     decel_nm_s2: f32,
     /// The moving mass in use (kg): the parameter, a payload a speed-up measured, or the mass
@@ -280,9 +277,8 @@ impl Controller {
             servo: false,
             referenced: false,
             dt_s: 1.0 / cfg.loop_hz as f32,
-            thrust_bias_n: cfg.expected_load_n,
-            integral_n: 0.0,
-            integral_v: 0.0,
+            load: LoadObserver::new(LoadObserverConfig::of(&cfg)),
+            pi: PlainPi::new(PlainPiConfig::of(&cfg)),
             fine_offset_v: 0.0,
             speed_nm_s: 0.0,
             on_target_s: 0.0,
@@ -293,9 +289,6 @@ impl Controller {
             frequency_trial: None,
             pinned_frequency_hz: None,
             fine_misses: 0,
-            observed_bias_n: cfg.expected_load_n,
-            end_bias_n: [None; 2],
-            last_sense: None,
             model: ModelSlot::new(&cfg, 0),
             prev_speed_nm_s: 0.0,
             decel_nm_s2: 1.0,
@@ -369,7 +362,7 @@ impl Controller {
     /// The load estimate the feedforward pushes against (N along +x): the observer's, plus the
     /// integral's correction while moving.
     pub fn load_estimate_n(&self) -> f32 {
-        self.thrust_bias_n
+        self.load.estimate_n()
     }
 
     /// Largest |reference − position| since the last move command.
