@@ -5,7 +5,7 @@ use super::open_loop::OpenLoopRun;
 use super::referencing::ReferenceSearch;
 use super::SpeedUp;
 use super::{validate_settings, Activity, CommandError, Controller, ControllerConfig, Mode, State};
-use super::{LoadObserverConfig, PlainPiConfig};
+use super::{LoadObserverConfig, PlainPiConfig, SupervisorConfig};
 use crate::sensors::PreloadCell;
 
 impl Controller {
@@ -30,6 +30,7 @@ impl Controller {
             || cfg.rail_viscous_n_s_per_m != c.rail_viscous_n_s_per_m;
         self.load.configure(LoadObserverConfig::of(&cfg), recalibrated);
         self.pi.configure(PlainPiConfig::of(&cfg));
+        self.supervisor.configure(SupervisorConfig::of(&cfg));
         if cfg.preload != self.cfg.preload {
             // Re-primed by the next sample.
             self.preload = PreloadCell::new(cfg.preload);
@@ -92,9 +93,8 @@ impl Controller {
         self.speedup = Some(SpeedUp::start());
         self.frequency_trial = None;
         self.pinned_frequency_hz = None;
-        self.max_following_error_nm = 0.0;
+        self.supervisor.start_move();
         self.on_target_s = 0.0;
-        self.limit_stopped = false;
         self.activity = Activity::Moving;
         let to_target = (target_nm - self.position_nm()) as f32;
         if !matches!(self.mode, Mode::Coarse) && to_target.abs() > self.cfg.fine_window_nm {
@@ -196,7 +196,7 @@ impl Controller {
         };
         self.mode = Mode::Coarse;
         self.activity = Activity::OpenLoop(run);
-        self.limit_stopped = false;
+        self.supervisor.start_run();
         Ok(())
     }
 

@@ -27,6 +27,7 @@ mod open_loop;
 mod plain_pi;
 mod referencing;
 mod supervision;
+mod supervisor;
 pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
 use fine::FineStep;
 use load_observer::{LoadObserver, LoadObserverConfig};
@@ -35,6 +36,7 @@ use model_cache::ModelSlot;
 use open_loop::OpenLoopRun;
 use plain_pi::{PlainPi, PlainPiConfig};
 use referencing::ReferenceSearch;
+use supervisor::{Supervisor, SupervisorConfig};
 
 /// DAC samples produced per control period (DAC rate / loop rate).
 pub const DAC_SAMPLES_PER_STEP: usize = 20;
@@ -223,9 +225,7 @@ pub struct Controller {
     fine_offset_v: f32,
     speed_nm_s: f32,
     on_target_s: f32,
-    stall_s: f32,
     drive_v: f32,
-    max_following_error_nm: f32,
     accel_ref_nm_s2: f32,
     /// A frequency the model switched to during this move, on trial ([`frequency`]) ...
     frequency_trial: Option<frequency::FrequencyTrial>,
@@ -245,12 +245,8 @@ pub struct Controller {
     mass_preload_n: f32,
     /// The move's speed-up while it is being timed.
     speedup: Option<SpeedUp>,
-    reference_failures: u32,
-    /// Moves and open-loop runs a limit switch stopped (wraps), and whether the move or run in
-    /// progress has been stopped by one already (counted once; cleared when one starts).
-    limit_stops: u32,
-    limit_stopped: bool,
-    faults: u32,
+    /// Following error and stall judgement, and the counts the protocol watches.
+    supervisor: Supervisor,
     /// Control periods since start (wraps): the speed-up limit (a model evaluation) is
     /// refreshed on odd periods only; the profile's acceleration changes little in 100 µs.
     tick: u32,
@@ -282,9 +278,7 @@ impl Controller {
             fine_offset_v: 0.0,
             speed_nm_s: 0.0,
             on_target_s: 0.0,
-            stall_s: 0.0,
             drive_v: 0.0,
-            max_following_error_nm: 0.0,
             accel_ref_nm_s2: 0.0,
             frequency_trial: None,
             pinned_frequency_hz: None,
@@ -296,10 +290,7 @@ impl Controller {
             learned_mass_kg: cfg.moving_mass_kg,
             mass_preload_n: 0.0,
             speedup: None,
-            reference_failures: 0,
-            limit_stops: 0,
-            limit_stopped: false,
-            faults: 0,
+            supervisor: Supervisor::new(SupervisorConfig::of(&cfg)),
             tick: 0,
             speedup_nm_s2: core::cell::Cell::new(0.0),
             cfg,
@@ -367,7 +358,7 @@ impl Controller {
 
     /// Largest |reference − position| since the last move command.
     pub fn max_following_error_nm(&self) -> f32 {
-        self.max_following_error_nm
+        self.supervisor.max_following_error_nm()
     }
 
     /// Referencing in progress (PI's "controller busy").
@@ -385,26 +376,18 @@ impl Controller {
 
     /// Faults since power-up (wraps): a change tells the protocol a fault happened.
     pub fn fault_count(&self) -> u32 {
-        self.faults
+        self.supervisor.faults()
     }
 
     /// Referencing searches that ended without finding the mark (wraps).
     pub fn reference_failure_count(&self) -> u32 {
-        self.reference_failures
+        self.supervisor.reference_failures()
     }
 
     /// Closed-loop moves and open-loop runs that a limit switch stopped (wraps): a change tells
     /// the protocol one did.
     pub fn limit_stop_count(&self) -> u32 {
-        self.limit_stops
-    }
-
-    /// Counts a limit switch's stop (once per move).
-    fn note_limit_stop(&mut self) {
-        if !self.limit_stopped {
-            self.limit_stopped = true;
-            self.limit_stops = self.limit_stops.wrapping_add(1);
-        }
+        self.supervisor.limit_stops()
     }
 
     /// Motion in progress: a closed-loop move, referencing or open-loop stepping.
@@ -458,7 +441,7 @@ impl Controller {
             if (inputs.negative_limit && (v < 0.0 || toward < 0))
                 || (inputs.positive_limit && (v > 0.0 || toward > 0))
             {
-                self.note_limit_stop();
+                self.supervisor.note_limit_stop();
                 self.stop();
             }
         }

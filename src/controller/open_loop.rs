@@ -20,7 +20,7 @@ impl Controller {
         let blocked =
             (run.direction < 0 && inputs.negative_limit) || (run.direction > 0 && inputs.positive_limit);
         if blocked {
-            self.note_limit_stop();
+            self.supervisor.note_limit_stop();
         }
         if run.periods == 0 || blocked {
             return self.end_open_loop_motion();

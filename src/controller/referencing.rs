@@ -65,7 +65,7 @@ impl Controller {
     }
 
     pub(super) fn reference_failed(&mut self) {
-        self.reference_failures = self.reference_failures.wrapping_add(1);
+        self.supervisor.note_reference_failure();
         self.referenced = false;
         self.end_open_loop_motion();
     }
