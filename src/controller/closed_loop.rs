@@ -116,8 +116,8 @@ impl Controller {
             Mode::FineEntering => {
                 self.generator.set_amplitude_v(0.0);
                 if self.generator.amplitude_v() == 0.0 {
-                    // No check pending; the misses carry over (see `fine_misses`).
-                    self.mode = Mode::Fine(FineStep::at(self.fine_offset_v));
+                    // No check pending; the misses carry over ([`super::fine::FineMode`]).
+                    self.mode = Mode::Fine(FineStep::at(self.fine.offset_v()));
                 }
             }
             Mode::Fine(_) => {
@@ -156,13 +156,9 @@ impl Controller {
         self.preload.force_n().max(0.0) * self.cfg.mu_dynamic
     }
 
-    /// Whether the fine mode's static stroke takes a move of `to_target_nm` from here: within the
-    /// fine window and, with the offset already on the stacks, inside the stroke with margin.
+    /// Whether the fine mode's static stroke takes a move of `to_target_nm` from here.
     pub(super) fn fine_takes(&self, to_target_nm: f32) -> bool {
-        let nm_per_v = self.model.fine_nm_per_v.max(1e-3);
-        let fine_room_nm = self.fine_room_v() * self.model.fine_nm_per_v;
-        let fits = (self.fine_offset_v + to_target_nm / nm_per_v).abs() < 0.9 * self.fine_room_v();
-        fits && to_target_nm.abs() < self.cfg.fine_window_nm.min(0.8 * fine_room_nm)
+        self.fine.takes(to_target_nm, self.model.fine_nm_per_v)
     }
 
     /// Highest profile speed: the model's speed at full drive against the estimated load in the

@@ -4,7 +4,6 @@
 
 use super::load_observer::LoadSample;
 use super::{Controller, State, DAC_SAMPLES_PER_STEP};
-use crate::fastmath::clamp_sym_f32;
 
 /// In the final approach the slider counts as stuck below this share of the approach speed:
 /// all of it, as the measured speed lags the slider by milliseconds (at a quarter, a 0.3 kg
@@ -22,11 +21,7 @@ impl Controller {
     /// model's thrust at the set amplitude was too high there: a 5 kg carriage's speed-up from a
     /// hold measured it as mass (`mass.rs`; 8.8–9.1 kg against 7.7 from rest, μ 15 % low).
     fn swing_v(&self) -> f32 {
-        let half = 0.5 * self.generator.amplitude_v();
-        let room = self.fine_room_v();
-        let up = half.min(room - self.fine_offset_v);
-        let down = half.min(room + self.fine_offset_v);
-        (up + down).max(0.0)
+        self.fine.sine_swing_v(self.generator.amplitude_v())
     }
 
     pub(super) fn coarse(&mut self, err_nm: f32) {
@@ -121,9 +116,8 @@ impl Controller {
         // within a few milliseconds. Until it is, the sine has less room in the amplifier's range:
         // at the old 45 ms for a ±23 V hold offset, a move started from a hold lost thrust over
         // its whole speed-up (1 mm: 0.9–2.8 µm peak following error against 0.55 from rest).
-        let recentre = 100.0 * self.dt_s * self.fine_room_v();
-        self.fine_offset_v -= clamp_sym_f32(self.fine_offset_v, recentre);
-        self.generator.ramp_static_offsets_v([self.fine_offset_v; 2], DAC_SAMPLES_PER_STEP as u32);
+        let offset = self.fine.recentre(self.dt_s);
+        self.generator.ramp_static_offsets_v([offset; 2], DAC_SAMPLES_PER_STEP as u32);
         self.generator.set_direction(dir);
         self.generator.set_frequency_hz(self.coarse_frequency_hz());
         self.generator.set_amplitude_v(volts);

@@ -5,7 +5,7 @@ use super::open_loop::OpenLoopRun;
 use super::referencing::ReferenceSearch;
 use super::SpeedUp;
 use super::{validate_settings, Activity, CommandError, Controller, ControllerConfig, Mode, State};
-use super::{LoadObserverConfig, PlainPiConfig, SupervisorConfig};
+use super::{FineModeConfig, LoadObserverConfig, PlainPiConfig, SupervisorConfig};
 use crate::sensors::PreloadCell;
 
 impl Controller {
@@ -31,6 +31,7 @@ impl Controller {
         self.load.configure(LoadObserverConfig::of(&cfg), recalibrated);
         self.pi.configure(PlainPiConfig::of(&cfg));
         self.supervisor.configure(SupervisorConfig::of(&cfg));
+        self.fine.configure(FineModeConfig::of(&cfg));
         if cfg.preload != self.cfg.preload {
             // Re-primed by the next sample.
             self.preload = PreloadCell::new(cfg.preload);
@@ -55,9 +56,9 @@ impl Controller {
         }
         self.servo = on;
         if on {
-            self.fine_misses = 0;
+            self.fine.forget_misses();
             if let Mode::Fine(f) = &mut self.mode {
-                f.expect_counts = 0;
+                f.forget_check();
             }
             let here = self.position_nm();
             self.profile.reset(here);

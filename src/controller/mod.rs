@@ -29,7 +29,7 @@ mod referencing;
 mod supervision;
 mod supervisor;
 pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
-use fine::FineStep;
+use fine::{FineMode, FineModeConfig, FineStep};
 use load_observer::{LoadObserver, LoadObserverConfig};
 use mass::SpeedUp;
 use model_cache::ModelSlot;
@@ -222,7 +222,8 @@ pub struct Controller {
     load: LoadObserver,
     /// The coarse mode's feedback without the model.
     pi: PlainPi,
-    fine_offset_v: f32,
+    /// The static offset and the encoder-loss count of the fine mode ([`fine`]).
+    fine: FineMode,
     speed_nm_s: f32,
     on_target_s: f32,
     drive_v: f32,
@@ -231,9 +232,6 @@ pub struct Controller {
     frequency_trial: Option<frequency::FrequencyTrial>,
     /// ... and the one the move went back to when the trial failed, kept to the move's end.
     pinned_frequency_hz: Option<f32>,
-    /// Fine-mode corrections in a row the encoder missed (carried across fine-mode entries: a
-    /// frozen encoder sends the fine mode out of stroke and back through the coarse mode).
-    fine_misses: u32,
     prev_speed_nm_s: f32,
     decel_nm_s2: f32,
     /// The moving mass in use (kg): the parameter, a payload a speed-up measured, or the mass
@@ -275,14 +273,13 @@ impl Controller {
             dt_s: 1.0 / cfg.loop_hz as f32,
             load: LoadObserver::new(LoadObserverConfig::of(&cfg)),
             pi: PlainPi::new(PlainPiConfig::of(&cfg)),
-            fine_offset_v: 0.0,
+            fine: FineMode::new(FineModeConfig::of(&cfg)),
             speed_nm_s: 0.0,
             on_target_s: 0.0,
             drive_v: 0.0,
             accel_ref_nm_s2: 0.0,
             frequency_trial: None,
             pinned_frequency_hz: None,
-            fine_misses: 0,
             model: ModelSlot::new(&cfg, 0),
             prev_speed_nm_s: 0.0,
             decel_nm_s2: 1.0,
@@ -339,7 +336,7 @@ impl Controller {
 
     /// Common static offset of the fine mode (V).
     pub fn fine_offset_v(&self) -> f32 {
-        self.fine_offset_v
+        self.fine.offset_v()
     }
 
     pub fn fine_mode(&self) -> bool {
