@@ -68,7 +68,7 @@ impl Controller {
         let backslide = self.state() == State::Moving && d * self.speed_nm_s < -50_000.0;
         let observe =
             (d * self.speed_nm_s > 200_000.0 || backslide) && self.drive_v > 0.2 * self.cfg.max_drive_v;
-        let applied = if observe || self.speedup.is_some() {
+        let applied = if observe || self.mass.timing() {
             self.model.table.as_ref().map_or(0.0, |t| t.thrust_n(self.swing_v(), d * self.speed_nm_s * 1e-6))
         } else {
             0.0

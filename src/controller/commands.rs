@@ -3,7 +3,6 @@
 
 use super::open_loop::OpenLoopRun;
 use super::referencing::ReferenceSearch;
-use super::SpeedUp;
 use super::{validate_settings, Activity, CommandError, Controller, ControllerConfig, Mode, State};
 use super::{FineModeConfig, LoadObserverConfig, PlainPiConfig, SupervisorConfig};
 use crate::sensors::PreloadCell;
@@ -39,10 +38,8 @@ impl Controller {
         // What the speed-ups measured stays through a speed or limit change (`VEL`, `ACC`, …),
         // not through a new mass or calibration.
         let forget = recalibrated || cfg.moving_mass_kg != self.cfg.moving_mass_kg;
+        self.mass.configure(cfg.moving_mass_kg, forget);
         self.cfg = cfg;
-        if forget {
-            self.forget_mass();
-        }
         self.model.reconfigure(&self.cfg);
         Ok(())
     }
@@ -84,14 +81,13 @@ impl Controller {
             return Err(CommandError::OutOfTravel);
         }
         let preload_n = self.check_preload()?;
-        self.forget_mass_off_its_preload(preload_n);
+        self.mass.start_move(preload_n);
         self.load.start_move(target_nm < self.position_nm());
         self.profile.set_target(target_nm);
         // The braking rate is fixed for the whole move: a braking curve that changed under the
         // profile's feet would arrive with speed left over. Without a model table yet it is 0,
         // and the first table sets it (`regulate`).
         self.decel_nm_s2 = self.accel_limit_nm_s2();
-        self.speedup = Some(SpeedUp::start());
         self.frequency_trial = None;
         self.pinned_frequency_hz = None;
         self.supervisor.start_move();

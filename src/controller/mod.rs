@@ -31,7 +31,7 @@ mod supervisor;
 pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
 use fine::{FineMode, FineModeConfig, FineStep};
 use load_observer::{LoadObserver, LoadObserverConfig};
-use mass::SpeedUp;
+use mass::MassEstimator;
 use model_cache::ModelSlot;
 use open_loop::OpenLoopRun;
 use plain_pi::{PlainPi, PlainPiConfig};
@@ -234,15 +234,8 @@ pub struct Controller {
     pinned_frequency_hz: Option<f32>,
     prev_speed_nm_s: f32,
     decel_nm_s2: f32,
-    /// The moving mass in use (kg): the parameter, a payload a speed-up measured, or the mass
-    /// learned from long speed-ups ([`mass`]).
-    mass_kg: f32,
-    /// What long speed-ups taught beyond the told mass (kg, [`mass`]) ...
-    learned_mass_kg: f32,
-    /// ... at this preload (N).
-    mass_preload_n: f32,
-    /// The move's speed-up while it is being timed.
-    speedup: Option<SpeedUp>,
+    /// The moving mass: told, measured or learned ([`mass`]).
+    mass: MassEstimator,
     /// Following error and stall judgement, and the counts the protocol watches.
     supervisor: Supervisor,
     /// Control periods since start (wraps): the speed-up limit (a model evaluation) is
@@ -283,10 +276,7 @@ impl Controller {
             model: ModelSlot::new(&cfg, 0),
             prev_speed_nm_s: 0.0,
             decel_nm_s2: 1.0,
-            mass_kg: cfg.moving_mass_kg,
-            learned_mass_kg: cfg.moving_mass_kg,
-            mass_preload_n: 0.0,
-            speedup: None,
+            mass: MassEstimator::new(cfg.moving_mass_kg),
             supervisor: Supervisor::new(SupervisorConfig::of(&cfg)),
             tick: 0,
             speedup_nm_s2: core::cell::Cell::new(0.0),
