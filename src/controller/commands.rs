@@ -31,6 +31,7 @@ impl Controller {
         self.pi.configure(PlainPiConfig::of(&cfg));
         self.supervisor.configure(SupervisorConfig::of(&cfg));
         self.fine.configure(FineModeConfig::of(&cfg));
+        self.frequency.configure(&cfg);
         if cfg.preload != self.cfg.preload {
             // Re-primed by the next sample.
             self.preload = PreloadCell::new(cfg.preload);
@@ -88,8 +89,7 @@ impl Controller {
         // profile's feet would arrive with speed left over. Without a model table yet it is 0,
         // and the first table sets it (`regulate`).
         self.decel_nm_s2 = self.accel_limit_nm_s2();
-        self.frequency_trial = None;
-        self.pinned_frequency_hz = None;
+        self.frequency.start_move();
         self.supervisor.start_move();
         self.on_target_s = 0.0;
         self.activity = Activity::Moving;

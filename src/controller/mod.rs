@@ -20,6 +20,7 @@ mod config;
 mod fine;
 mod frequency;
 mod frequency_choice;
+mod frequency_policy;
 mod load_observer;
 mod mass;
 pub mod model_cache;
@@ -30,6 +31,7 @@ mod supervision;
 mod supervisor;
 pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
 use fine::{FineMode, FineModeConfig, FineStep};
+use frequency_policy::FrequencyPolicy;
 use load_observer::{LoadObserver, LoadObserverConfig};
 use mass::MassEstimator;
 use model_cache::ModelSlot;
@@ -228,10 +230,8 @@ pub struct Controller {
     on_target_s: f32,
     drive_v: f32,
     accel_ref_nm_s2: f32,
-    /// A frequency the model switched to during this move, on trial ([`frequency`]) ...
-    frequency_trial: Option<frequency::FrequencyTrial>,
-    /// ... and the one the move went back to when the trial failed, kept to the move's end.
-    pinned_frequency_hz: Option<f32>,
+    /// When the drive frequency may change ([`frequency_policy`]).
+    frequency: FrequencyPolicy,
     prev_speed_nm_s: f32,
     decel_nm_s2: f32,
     /// The moving mass: told, measured or learned ([`mass`]).
@@ -271,8 +271,7 @@ impl Controller {
             on_target_s: 0.0,
             drive_v: 0.0,
             accel_ref_nm_s2: 0.0,
-            frequency_trial: None,
-            pinned_frequency_hz: None,
+            frequency: FrequencyPolicy::new(&cfg),
             model: ModelSlot::new(&cfg, 0),
             prev_speed_nm_s: 0.0,
             decel_nm_s2: 1.0,

@@ -530,7 +530,7 @@ impl Controller {
         let load_n = self.choice_load_n();
         let kept = self.model.table.as_ref().filter(|t| self.keeps_frequency(t, load_n));
         let pinned =
-            self.pinned_frequency_hz.filter(|&f| kept.is_some_and(|t| t.request().frequency_hz != f));
+            self.frequency.pinned_hz().filter(|&f| kept.is_some_and(|t| t.request().frequency_hz != f));
         let choice = match (kept, pinned) {
             // Back to the frequency a failed trial left ([`super::frequency`]).
             (_, Some(f)) => FrequencyChoice::fixed(f, self.cfg.per_volt_at(f), load_n),
