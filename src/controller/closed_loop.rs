@@ -22,24 +22,54 @@ const STOP_SHARE_OF_FINE_WINDOW: f32 = 0.25;
 const MIN_BRAKE_NM_S2: f32 = 1.0e6;
 
 impl Controller {
+    /// One closed-loop period (Moving and Holding): the profile, then the mode's control.
     pub(super) fn regulate(&mut self) {
-        // Never below a crawl: a load estimate at or past the model's stall force (told, or
-        // learned) leaves the model no speed at all, and a profile that cannot start hangs the
-        // move with the drive short of full, where no stall is judged (plain feedback against a
-        // told 2 N on 0.1 kg sat still for good). Crawling on, either the slider follows or the
-        // full drive it gets is judged a stall. Without a table there is no model to move by:
-        // the profile stays.
-        let crawl =
-            if self.model.table.is_some() { PROFILE_CRAWL_SHARE * self.cfg.approach_speed_nm_s } else { 0.0 };
-        let mut v_max = self.speed_limit_nm_s().max(crawl);
-        // A reference running away from a slider that cannot follow (an unknown load, a preload
-        // change) only builds following error: past some lag the profile waits for the slider.
-        let lag =
-            (self.profile.position_nm() - self.position_nm()) as f32 * self.profile.velocity_nm_s().signum();
-        let waiting = lag > self.cfg.profile_wait_lag_nm;
-        if waiting {
-            v_max = v_max.min((self.speed_nm_s * self.profile.velocity_nm_s().signum()).max(0.0));
+        self.step_profile();
+        if self.state() == State::Moving && self.profile.done() {
+            self.enter_hold();
         }
+        self.judge_frequency_trial();
+        let pos = self.position_nm();
+        let err = (self.profile.position_nm() - pos) as f32;
+        let to_target = (self.profile.target_nm() - pos) as f32;
+
+        // On-target bookkeeping.
+        if self.state() == State::Holding
+            && (self.profile.target_nm() - pos).abs() <= self.cfg.on_target_window_nm
+        {
+            self.on_target_s += self.dt_s;
+        } else {
+            self.on_target_s = 0.0;
+        }
+
+        match self.mode {
+            Mode::Coarse => {
+                if !self.hand_to_fine(to_target) {
+                    self.coarse(err);
+                }
+            }
+            Mode::FineEntering => {
+                self.generator.set_amplitude_v(0.0);
+                if self.generator.amplitude_v() == 0.0 {
+                    // No check pending; the misses carry over ([`super::fine::FineMode`]).
+                    self.mode = Mode::Fine(FineStep::at(self.fine.offset_v()));
+                }
+            }
+            Mode::Fine(_) => {
+                let fine_room_nm = self.fine_room_v() * self.model.fine_nm_per_v;
+                if to_target.abs() > fine_room_nm.max(self.cfg.fine_window_nm) * 1.5 {
+                    self.mode = Mode::Coarse;
+                    return;
+                }
+                self.fine(err);
+            }
+        }
+    }
+
+    /// The profile's period: its speed within the model's limits (and waiting for a lagging
+    /// slider), its braking rate, and the acceleration the feedforward counts as M·a.
+    fn step_profile(&mut self) {
+        let (v_max, waiting) = self.profile_speed_limit_nm_s();
         if self.decel_nm_s2 <= 0.0 {
             // A move commanded while the model table was being rebuilt (a setting changed just
             // before it: `VEL` then `MOV`) got no braking rate at its command, and a profile that
@@ -67,67 +97,57 @@ impl Controller {
             // (5 kg against an unknown 2 N: 97 V fell to 33 V, and the slider slid back 0.8 µm).
             self.accel_ref_nm_s2 = 0.0;
         }
-        if self.state() == State::Moving && self.profile.done() {
-            self.enter_hold();
-        }
-        self.judge_frequency_trial();
-        let pos = self.position_nm();
-        let err = (self.profile.position_nm() - pos) as f32;
-        let to_target = (self.profile.target_nm() - pos) as f32;
+    }
 
-        // On-target bookkeeping.
-        if self.state() == State::Holding
-            && (self.profile.target_nm() - pos).abs() <= self.cfg.on_target_window_nm
-        {
-            self.on_target_s += self.dt_s;
-        } else {
-            self.on_target_s = 0.0;
+    /// The profile's speed limit this period (nm/s), and whether it waits for the slider.
+    fn profile_speed_limit_nm_s(&self) -> (f32, bool) {
+        // Never below a crawl: a load estimate at or past the model's stall force (told, or
+        // learned) leaves the model no speed at all, and a profile that cannot start hangs the
+        // move with the drive short of full, where no stall is judged (plain feedback against a
+        // told 2 N on 0.1 kg sat still for good). Crawling on, either the slider follows or the
+        // full drive it gets is judged a stall. Without a table there is no model to move by:
+        // the profile stays.
+        let crawl =
+            if self.model.table.is_some() { PROFILE_CRAWL_SHARE * self.cfg.approach_speed_nm_s } else { 0.0 };
+        let mut v_max = self.speed_limit_nm_s().max(crawl);
+        // A reference running away from a slider that cannot follow (an unknown load, a preload
+        // change) only builds following error: past some lag the profile waits for the slider.
+        let lag =
+            (self.profile.position_nm() - self.position_nm()) as f32 * self.profile.velocity_nm_s().signum();
+        let waiting = lag > self.cfg.profile_wait_lag_nm;
+        if waiting {
+            v_max = v_max.min((self.speed_nm_s * self.profile.velocity_nm_s().signum()).max(0.0));
         }
+        (v_max, waiting)
+    }
 
-        let fine_room_nm = self.fine_room_v() * self.model.fine_nm_per_v;
-        match self.mode {
-            Mode::Coarse => {
-                // A light carriage rides the foot and swings with it within each drive period (up
-                // to ~300 nm at full drive): finishing in the coarse mode, its 1 and 10 µm steps
-                // overshot by the swing (180–440 nm). It goes to the fine mode while it still
-                // moves, once the sine's end stops it where the fine stroke reaches the target
-                // whichever way the swing leaves it (1–60 nm).
-                let early = !self.profile.done()
-                    && self.stop_with_sine_quiet_nm(to_target).is_some_and(|stop| {
-                        let swing = self.model.table.as_ref().map_or(0.0, |t| t.swing_nm(self.drive_v));
-                        let rest = to_target - stop;
-                        self.fine_takes(rest + swing) && self.fine_takes(rest - swing)
-                    });
-                if early {
-                    // The coarse part is over: the reference waits at the target instead of the
-                    // fine mode chasing its last few hundred nm (a carriage ahead of it stepped
-                    // back first; 10 µm steps of 0.1 and 0.3 kg took up to 5 ms longer).
-                    let target = self.profile.target_nm();
-                    self.profile.reset(target);
-                }
-                if early || (self.profile.done() && self.fine_takes(to_target)) {
-                    self.mode = Mode::FineEntering;
-                    self.generator.set_amplitude_v(0.0);
-                    self.drive_v = 0.0;
-                    return;
-                }
-                self.coarse(err);
-            }
-            Mode::FineEntering => {
-                self.generator.set_amplitude_v(0.0);
-                if self.generator.amplitude_v() == 0.0 {
-                    // No check pending; the misses carry over ([`super::fine::FineMode`]).
-                    self.mode = Mode::Fine(FineStep::at(self.fine.offset_v()));
-                }
-            }
-            Mode::Fine(_) => {
-                if to_target.abs() > fine_room_nm.max(self.cfg.fine_window_nm) * 1.5 {
-                    self.mode = Mode::Coarse;
-                    return;
-                }
-                self.fine(err);
-            }
+    /// In the coarse mode: hands the move to the fine mode when the static stroke takes what is
+    /// left (true: the sine ramps out this period). A light carriage rides the foot and swings
+    /// with it within each drive period (up to ~300 nm at full drive): finishing in the coarse
+    /// mode, its 1 and 10 µm steps overshot by the swing (180–440 nm). It goes to the fine mode
+    /// while it still moves, once the sine's end stops it where the fine stroke reaches the
+    /// target whichever way the swing leaves it (1–60 nm).
+    fn hand_to_fine(&mut self, to_target: f32) -> bool {
+        let early = !self.profile.done()
+            && self.stop_with_sine_quiet_nm(to_target).is_some_and(|stop| {
+                let swing = self.model.table.as_ref().map_or(0.0, |t| t.swing_nm(self.drive_v));
+                let rest = to_target - stop;
+                self.fine_takes(rest + swing) && self.fine_takes(rest - swing)
+            });
+        if early {
+            // The coarse part is over: the reference waits at the target instead of the fine
+            // mode chasing its last few hundred nm (a carriage ahead of it stepped back first;
+            // 10 µm steps of 0.1 and 0.3 kg took up to 5 ms longer).
+            let target = self.profile.target_nm();
+            self.profile.reset(target);
         }
+        if early || (self.profile.done() && self.fine_takes(to_target)) {
+            self.mode = Mode::FineEntering;
+            self.generator.set_amplitude_v(0.0);
+            self.drive_v = 0.0;
+            return true;
+        }
+        false
     }
 
     /// Where the slider stops if its sine stops now (nm from here, along its speed): the still
