@@ -116,7 +116,7 @@ impl Controller {
             (self.profile.position_nm() - self.position_nm()) as f32 * self.profile.velocity_nm_s().signum();
         let waiting = lag > self.cfg.profile_wait_lag_nm;
         if waiting {
-            v_max = v_max.min((self.speed_nm_s * self.profile.velocity_nm_s().signum()).max(0.0));
+            v_max = v_max.min((self.feedback.speed_nm_s() * self.profile.velocity_nm_s().signum()).max(0.0));
         }
         (v_max, waiting)
     }
@@ -161,7 +161,7 @@ impl Controller {
         }
         // The measured speed lags the slider by a few periods: the faster of it and the
         // reference's, with its sign.
-        let (measured, reference) = (self.speed_nm_s, self.profile.velocity_nm_s());
+        let (measured, reference) = (self.feedback.speed_nm_s(), self.profile.velocity_nm_s());
         let v_m_s = (if measured.abs() >= reference.abs() { measured } else { reference }) * 1e-9;
         let grip_n = self.grip_n();
         if grip_n <= 0.0 {
@@ -173,7 +173,7 @@ impl Controller {
 
     /// What the still foot's friction holds or brakes the carriage with (N): μ·F0.
     pub(super) fn grip_n(&self) -> f32 {
-        self.preload.force_n().max(0.0) * self.cfg.mu_dynamic
+        self.feedback.preload_force_n().max(0.0) * self.cfg.mu_dynamic
     }
 
     /// Whether the fine mode's static stroke takes a move of `to_target_nm` from here.

@@ -65,18 +65,21 @@ impl Controller {
         let d = f32::from(self.generator.direction());
         // Observe only while the drive pushes the way the slider moves at a fair speed: the
         // model is least certain when braking and near standstill (stick).
-        let backslide = self.state() == State::Moving && d * self.speed_nm_s < -50_000.0;
-        let observe =
-            (d * self.speed_nm_s > 200_000.0 || backslide) && self.drive_v > 0.2 * self.cfg.max_drive_v;
+        let backslide = self.state() == State::Moving && d * self.feedback.speed_nm_s() < -50_000.0;
+        let observe = (d * self.feedback.speed_nm_s() > 200_000.0 || backslide)
+            && self.drive_v > 0.2 * self.cfg.max_drive_v;
         let applied = if observe || self.mass.timing() {
-            self.model.table.as_ref().map_or(0.0, |t| t.thrust_n(self.swing_v(), d * self.speed_nm_s * 1e-6))
+            self.model
+                .table
+                .as_ref()
+                .map_or(0.0, |t| t.thrust_n(self.swing_v(), d * self.feedback.speed_nm_s() * 1e-6))
         } else {
             0.0
         };
         self.time_speedup(d * applied);
         let observed_n = observe.then(|| {
             let mass = self.moving_mass_kg();
-            let accel = (self.speed_nm_s - self.prev_speed_nm_s) / self.dt_s * 1e-9;
+            let accel = (self.feedback.speed_nm_s() - self.feedback.prev_speed_nm_s()) / self.dt_s * 1e-9;
             d * applied - mass * accel
         });
         let push_n_s = self.approach_push_n_s(err_nm, d, stall);
@@ -93,7 +96,7 @@ impl Controller {
     /// T ≥ 200·τ (50 kg: 0.5 s; at 20 ms the 50 kg carriage overshot 1 mm against an unknown 2 N
     /// by 322 nm).
     fn approach_push_n_s(&self, err_nm: f32, d: f32, stall: f32) -> Option<f32> {
-        let stuck = d * self.speed_nm_s < APPROACH_STUCK_SHARE * self.cfg.approach_speed_nm_s;
+        let stuck = d * self.feedback.speed_nm_s() < APPROACH_STUCK_SHARE * self.cfg.approach_speed_nm_s;
         if !(self.profile.done() && stuck) {
             return None;
         }

@@ -5,7 +5,6 @@ use super::open_loop::OpenLoopRun;
 use super::referencing::ReferenceSearch;
 use super::{validate_settings, Activity, CommandError, Controller, ControllerConfig, Mode, State};
 use super::{FineModeConfig, LoadObserverConfig, PlainPiConfig, SupervisorConfig};
-use crate::sensors::PreloadCell;
 
 impl Controller {
     /// Replaces the settings after checking them. What the hardware fixes (loop and DAC rates,
@@ -32,10 +31,7 @@ impl Controller {
         self.supervisor.configure(SupervisorConfig::of(&cfg));
         self.fine.configure(FineModeConfig::of(&cfg));
         self.frequency.configure(&cfg);
-        if cfg.preload != self.cfg.preload {
-            // Re-primed by the next sample.
-            self.preload = PreloadCell::new(cfg.preload);
-        }
+        self.feedback.configure(&cfg);
         // What the speed-ups measured stays through a speed or limit change (`VEL`, `ACC`, …),
         // not through a new mass or calibration.
         let forget = recalibrated || cfg.moving_mass_kg != self.cfg.moving_mass_kg;
@@ -208,9 +204,7 @@ impl Controller {
 
     /// Declares the present position to be `position_nm` (referencing on a mark).
     pub fn set_reference_here(&mut self, position_nm: i64) {
-        if let Some(e) = self.encoder.as_mut() {
-            e.set_position_nm(position_nm);
-        }
+        self.feedback.set_position_nm(position_nm);
         let here = self.position_nm();
         self.profile.reset(here);
         self.referenced = true;

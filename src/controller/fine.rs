@@ -230,8 +230,8 @@ impl Controller {
         let Mode::Fine(f) = self.mode else { return };
         let period = FinePeriod {
             err_nm,
-            counts: self.encoder.map_or(0, |e| e.counts()),
-            nm_per_count: self.encoder.map_or(50, |e| e.nm_per_count()),
+            counts: self.feedback.encoder().map_or(0, |e| e.counts()),
+            nm_per_count: self.feedback.encoder().map_or(50, |e| e.nm_per_count()),
             nm_per_v: self.model.fine_nm_per_v.max(1e-3),
             grip_n: self.grip_n(),
             mass_kg: self.moving_mass_kg(),

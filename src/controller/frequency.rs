@@ -64,7 +64,7 @@ impl Controller {
     fn along_the_move(&self) -> (f32, f32) {
         let sense = self.load.move_sense();
         let lag = (self.profile.position_nm() - self.position_nm()) as f32 * sense;
-        (sense * self.speed_nm_s, lag)
+        (sense * self.feedback.speed_nm_s(), lag)
     }
 
     /// A table at `new_hz` is going in (from `old_hz`): during a move it may go on trial.

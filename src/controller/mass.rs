@@ -4,7 +4,7 @@
 //! Momentum: over the speed-up, ∫(F − L) dt = M·Δv, with F the thrust the model says the applied
 //! drive gives at the measured speed and L the load estimate. Timed from the move's command until
 //! the slider has half the profile's top speed; the speed filter's lag (it reports the speed of
-//! [`super::supervision::SPEED_FILTER`]'s time constant ago) is taken off the impulse. Only a
+//! [`super::feedback::SPEED_FILTER`]'s time constant ago) is taken off the impulse. Only a
 //! speed-up long against that lag counts (two time constants: carriages of a few kg and more,
 //! whose braking the mass limits; lighter ones brake within the drive-period spread anyway).
 //! Only heavier than told counts: a mass overestimated brakes gently, one underestimated plans a
@@ -143,7 +143,7 @@ impl MassEstimator {
             return false;
         }
         self.speedup = None;
-        let lag_s = p.dt_s / super::supervision::SPEED_FILTER;
+        let lag_s = p.dt_s / super::feedback::SPEED_FILTER;
         if s.t_s < LEAST_FILTER_TIMES * lag_s {
             return false;
         }
@@ -201,11 +201,11 @@ impl Controller {
             sense: v.signum(),
             thrust_x_n,
             load_x_n: self.load.estimate_n(),
-            speed_nm_s: self.speed_nm_s,
+            speed_nm_s: self.feedback.speed_nm_s(),
             half_top_nm_s: if speeding_up { 0.5 * self.speed_limit_nm_s() } else { 0.0 },
             dt_s: self.dt_s,
             limits: self.cached_limits(),
-            preload_n: self.preload.force_n(),
+            preload_n: self.feedback.preload_force_n(),
         };
         if self.mass.update(&period) {
             // The braking rate was set at the command from the lighter mass; the profile has not
@@ -218,7 +218,7 @@ impl Controller {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::controller::supervision::SPEED_FILTER;
+    use crate::controller::feedback::SPEED_FILTER;
 
     const DT_S: f32 = 1e-4;
 

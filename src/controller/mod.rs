@@ -10,13 +10,13 @@
 
 use crate::generator::QuadratureGenerator;
 use crate::profile::Profile;
-use crate::sensors::{Encoder, PreloadCell};
 
 // One module per job; each adds its methods to `Controller`. `step` below is where to start.
 mod closed_loop;
 mod coarse;
 mod commands;
 mod config;
+mod feedback;
 mod fine;
 mod frequency;
 mod frequency_choice;
@@ -30,6 +30,7 @@ mod referencing;
 mod supervision;
 mod supervisor;
 pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
+use feedback::Feedback;
 use fine::{FineMode, FineModeConfig, FineStep};
 use frequency_policy::FrequencyPolicy;
 use load_observer::{LoadObserver, LoadObserverConfig};
@@ -211,8 +212,8 @@ pub struct Controller {
     cfg: ControllerConfig,
     model: ModelSlot,
     generator: QuadratureGenerator,
-    encoder: Option<Encoder>,
-    preload: PreloadCell,
+    /// Encoder, speed and preload readings ([`feedback`]).
+    feedback: Feedback,
     profile: Profile,
     /// What the controller is doing, with that activity's own data.
     activity: Activity,
@@ -226,13 +227,11 @@ pub struct Controller {
     pi: PlainPi,
     /// The static offset and the encoder-loss count of the fine mode ([`fine`]).
     fine: FineMode,
-    speed_nm_s: f32,
     on_target_s: f32,
     drive_v: f32,
     accel_ref_nm_s2: f32,
     /// When the drive frequency may change ([`frequency_policy`]).
     frequency: FrequencyPolicy,
-    prev_speed_nm_s: f32,
     decel_nm_s2: f32,
     /// The moving mass: told, measured or learned ([`mass`]).
     mass: MassEstimator,
@@ -256,8 +255,7 @@ impl Controller {
         generator.set_frequency_hz(cfg.drive_freq_hz);
         Ok(Controller {
             generator,
-            encoder: None,
-            preload: PreloadCell::new(cfg.preload),
+            feedback: Feedback::new(&cfg),
             profile: Profile::at_rest(0),
             activity: Activity::Idle,
             mode: Mode::Coarse,
@@ -267,13 +265,11 @@ impl Controller {
             load: LoadObserver::new(LoadObserverConfig::of(&cfg)),
             pi: PlainPi::new(PlainPiConfig::of(&cfg)),
             fine: FineMode::new(FineModeConfig::of(&cfg)),
-            speed_nm_s: 0.0,
             on_target_s: 0.0,
             drive_v: 0.0,
             accel_ref_nm_s2: 0.0,
             frequency: FrequencyPolicy::new(&cfg),
             model: ModelSlot::new(&cfg, 0),
-            prev_speed_nm_s: 0.0,
             decel_nm_s2: 1.0,
             mass: MassEstimator::new(cfg.moving_mass_kg),
             supervisor: Supervisor::new(SupervisorConfig::of(&cfg)),
@@ -292,7 +288,7 @@ impl Controller {
     }
 
     pub fn position_nm(&self) -> i64 {
-        self.encoder.map_or(0, |e| e.position_nm())
+        self.feedback.position_nm()
     }
 
     pub fn target_nm(&self) -> i64 {
@@ -304,7 +300,7 @@ impl Controller {
     }
 
     pub fn preload_n(&self) -> Option<f32> {
-        self.preload.valid().then(|| self.preload.force_n())
+        self.feedback.preload_n()
     }
 
     pub fn servo(&self) -> bool {
@@ -333,7 +329,7 @@ impl Controller {
     }
 
     pub fn speed_nm_s(&self) -> f32 {
-        self.speed_nm_s
+        self.feedback.speed_nm_s()
     }
 
     /// The load estimate the feedforward pushes against (N along +x): the observer's, plus the

@@ -33,7 +33,7 @@ impl Controller {
         if found {
             let mut at = self.cfg.reference_position_nm;
             if let (ReferenceSignal::Index, false, Some(raw), Some(e)) =
-                (self.cfg.reference_signal, search.on_limit, inputs.index_raw, self.encoder)
+                (self.cfg.reference_signal, search.on_limit, inputs.index_raw, self.feedback.encoder())
             {
                 // Counts moved since the latched edge (well within ±2¹⁵ in one period).
                 let since = i64::from(inputs.encoder_raw.wrapping_sub(raw) as i16);

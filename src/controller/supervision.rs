@@ -4,27 +4,12 @@
 
 use super::supervisor::ClosedLoopPeriod;
 use super::{Activity, CommandError, Controller, FaultCode, Inputs, Mode, State};
-use crate::sensors::Encoder;
-
-/// Share of each period's encoder speed taken into the speed estimate: a first-order filter of
-/// 20 periods (2 ms at 10 kHz).
-pub(super) const SPEED_FILTER: f32 = 0.05;
 
 impl Controller {
     pub(super) fn sense(&mut self, inputs: &Inputs) {
-        self.preload.update(inputs.preload_word);
-        self.prev_speed_nm_s = self.speed_nm_s;
-        match self.encoder.as_mut() {
-            None => {
-                self.encoder = Some(Encoder::new(inputs.encoder_raw, self.cfg.encoder_nm_per_count));
-                self.profile.reset(0);
-            }
-            Some(e) => {
-                let delta = e.update(inputs.encoder_raw);
-                let v = delta as f32 * e.nm_per_count() as f32 / self.dt_s;
-                // 2 ms speed filter: the encoder quantum (50 nm per 100 µs) is 0.5 mm/s.
-                self.speed_nm_s += SPEED_FILTER * (v - self.speed_nm_s);
-            }
+        if self.feedback.update(inputs, self.dt_s) {
+            // The first reading: the encoder counts from 0 there.
+            self.profile.reset(0);
         }
     }
 
@@ -34,7 +19,7 @@ impl Controller {
         }
         let active =
             matches!(self.state(), State::Moving | State::Holding | State::Referencing | State::OpenLoop);
-        if let Some(e) = self.encoder {
+        if let Some(e) = self.feedback.encoder() {
             if self.supervisor.encoder_jumped(e.last_delta()) {
                 self.trip(FaultCode::EncoderJump);
                 return;
@@ -55,7 +40,7 @@ impl Controller {
         let period = ClosedLoopPeriod {
             err_nm: (self.profile.position_nm() - self.position_nm()) as f32,
             dir: f32::from(self.generator.direction()),
-            speed_nm_s: self.speed_nm_s,
+            speed_nm_s: self.feedback.speed_nm_s(),
             drive_v: self.drive_v,
             coarse: matches!(self.mode, Mode::Coarse),
             foot_speed_nm_s: self.cached_limits().map_or(0.0, |(_, v0)| v0 * 1e6),
