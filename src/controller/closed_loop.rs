@@ -3,7 +3,8 @@
 //! the fine (static) mode.
 
 use super::fine::FineStep;
-use super::{Controller, Mode, State};
+use super::model_cache::ModelTable;
+use super::{Controller, ControllerConfig, Mode, State};
 
 /// The foot pushes once per drive period, and a light carriage's speed ripples within one: a
 /// stop squeezed into a few periods is over before the loop (one period late, speed measured
@@ -25,22 +26,18 @@ impl Controller {
     /// One closed-loop period (Moving and Holding): the profile, then the mode's control.
     pub(super) fn regulate(&mut self) {
         self.step_profile();
-        if self.state() == State::Moving && self.profile.done() {
+        if self.state() == State::Moving && self.motion.profile().done() {
             self.enter_hold();
         }
         self.judge_frequency_trial();
         let pos = self.position_nm();
-        let err = (self.profile.position_nm() - pos) as f32;
-        let to_target = (self.profile.target_nm() - pos) as f32;
+        let err = (self.motion.profile().position_nm() - pos) as f32;
+        let to_target = (self.motion.profile().target_nm() - pos) as f32;
 
         // On-target bookkeeping.
-        if self.state() == State::Holding
-            && (self.profile.target_nm() - pos).abs() <= self.cfg.on_target_window_nm
-        {
-            self.on_target_s += self.dt_s;
-        } else {
-            self.on_target_s = 0.0;
-        }
+        let within = self.state() == State::Holding
+            && (self.motion.profile().target_nm() - pos).abs() <= self.cfg.on_target_window_nm;
+        self.motion.count_on_target(within, self.dt_s);
 
         match self.mode {
             Mode::Coarse => {
@@ -70,33 +67,19 @@ impl Controller {
     /// slider), its braking rate, and the acceleration the feedforward counts as M·a.
     fn step_profile(&mut self) {
         let (v_max, waiting) = self.profile_speed_limit_nm_s();
-        if self.decel_nm_s2 <= 0.0 {
+        if self.motion.decel_nm_s2() <= 0.0 {
             // A move commanded while the model table was being rebuilt (a setting changed just
             // before it: `VEL` then `MOV`) got no braking rate at its command, and a profile that
             // cannot brake crawls: it takes the rate from the first table (1 mm had not settled
             // after 3 s).
-            self.decel_nm_s2 = self.accel_limit_nm_s2();
+            let a = self.accel_limit_nm_s2();
+            self.motion.set_decel_nm_s2(a);
         }
-        let v_before = self.profile.velocity_nm_s();
-        let (dt_s, decel) = (self.dt_s, self.decel_nm_s2);
-        // The speed-up limit costs a model evaluation: only when the profile speeds up.
-        let odd = self.tick & 1 == 1;
-        let up = || {
-            if odd || self.speedup_nm_s2.get() <= 0.0 {
-                self.speedup_nm_s2.set(self.speedup_limit_nm_s2());
-            }
-            self.speedup_nm_s2.get()
-        };
-        let mut profile = self.profile;
-        profile.step(dt_s, v_max, up, decel);
-        self.profile = profile;
-        self.accel_ref_nm_s2 = (self.profile.velocity_nm_s() - v_before) / self.dt_s;
-        if waiting && self.accel_ref_nm_s2 * v_before < 0.0 {
-            // A profile slowing down to wait for a lagging slider asks for no braking: fed
-            // forward as M·a it took the drive away from a slider that was already behind
-            // (5 kg against an unknown 2 N: 97 V fell to 33 V, and the slider slid back 0.8 µm).
-            self.accel_ref_nm_s2 = 0.0;
-        }
+        // The speed-up limit at the profile's speed before this period's step.
+        let v = self.motion.profile().velocity_nm_s();
+        let (mass, load) = (self.moving_mass_kg(), self.load.estimate_n());
+        let (table, cfg) = (self.model.table.as_ref(), &self.cfg);
+        self.motion.step(self.dt_s, v_max, waiting, || speedup_limit_nm_s2(table, mass, load, v, cfg));
     }
 
     /// The profile's speed limit this period (nm/s), and whether it waits for the slider.
@@ -112,11 +95,12 @@ impl Controller {
         let mut v_max = self.speed_limit_nm_s().max(crawl);
         // A reference running away from a slider that cannot follow (an unknown load, a preload
         // change) only builds following error: past some lag the profile waits for the slider.
-        let lag =
-            (self.profile.position_nm() - self.position_nm()) as f32 * self.profile.velocity_nm_s().signum();
+        let lag = (self.motion.profile().position_nm() - self.position_nm()) as f32
+            * self.motion.profile().velocity_nm_s().signum();
         let waiting = lag > self.cfg.profile_wait_lag_nm;
         if waiting {
-            v_max = v_max.min((self.feedback.speed_nm_s() * self.profile.velocity_nm_s().signum()).max(0.0));
+            v_max = v_max
+                .min((self.feedback.speed_nm_s() * self.motion.profile().velocity_nm_s().signum()).max(0.0));
         }
         (v_max, waiting)
     }
@@ -128,7 +112,7 @@ impl Controller {
     /// while it still moves, once the sine's end stops it where the fine stroke reaches the
     /// target whichever way the swing leaves it (1–60 nm).
     fn hand_to_fine(&mut self, to_target: f32) -> bool {
-        let early = !self.profile.done()
+        let early = !self.motion.profile().done()
             && self.stop_with_sine_quiet_nm(to_target).is_some_and(|stop| {
                 let swing = self.model.table.as_ref().map_or(0.0, |t| t.swing_nm(self.drive_v));
                 let rest = to_target - stop;
@@ -138,10 +122,10 @@ impl Controller {
             // The coarse part is over: the reference waits at the target instead of the fine
             // mode chasing its last few hundred nm (a carriage ahead of it stepped back first;
             // 10 µm steps of 0.1 and 0.3 kg took up to 5 ms longer).
-            let target = self.profile.target_nm();
-            self.profile.reset(target);
+            let target = self.motion.profile().target_nm();
+            self.motion.profile_mut().reset(target);
         }
-        if early || (self.profile.done() && self.fine_takes(to_target)) {
+        if early || (self.motion.profile().done() && self.fine_takes(to_target)) {
             self.mode = Mode::FineEntering;
             self.generator.set_amplitude_v(0.0);
             self.drive_v = 0.0;
@@ -161,7 +145,7 @@ impl Controller {
         }
         // The measured speed lags the slider by a few periods: the faster of it and the
         // reference's, with its sign.
-        let (measured, reference) = (self.feedback.speed_nm_s(), self.profile.velocity_nm_s());
+        let (measured, reference) = (self.feedback.speed_nm_s(), self.motion.profile().velocity_nm_s());
         let v_m_s = (if measured.abs() >= reference.abs() { measured } else { reference }) * 1e-9;
         let grip_n = self.grip_n();
         if grip_n <= 0.0 {
@@ -188,7 +172,8 @@ impl Controller {
     /// mm/s against the 2 the plant makes while it counted only half (1 mm 1.68 → 1.28× the limit).
     pub(super) fn speed_limit_nm_s(&self) -> f32 {
         let Some(t) = self.model.table.as_ref() else { return 0.0 };
-        let dir = if self.profile.target_nm() >= self.profile.position_nm() { 1.0 } else { -1.0 };
+        let dir =
+            if self.motion.profile().target_nm() >= self.motion.profile().position_nm() { 1.0 } else { -1.0 };
         let load = (dir * self.load.estimate_n()).max(-t.stall_n());
         (t.speed_at_load_mm_s(load) * 1e6 * self.cfg.speed_fraction).min(self.cfg.velocity_max_nm_s)
     }
@@ -208,18 +193,22 @@ impl Controller {
         let usable = (stall - self.load.estimate_n().abs()).max(0.3 * stall);
         usable / mass * 1e9 * self.cfg.accel_fraction
     }
+}
 
-    /// Speeding-up limit at the profile's present speed: the model's thrust at that speed and
-    /// full drive, less the load estimate, over the moving mass. No acceleration the motor
-    /// cannot deliver at the measured preload.
-    pub(super) fn speedup_limit_nm_s2(&self) -> f32 {
-        let mass = self.moving_mass_kg();
-        let Some(t) = self.model.table.as_ref() else { return 0.0 };
-        let v = self.profile.velocity_nm_s();
-        let thrust = t.full_thrust_n(v.abs() * 1e-6);
-        let load = v.signum() * self.load.estimate_n();
-        let stall = t.stall_n();
-        let usable = (thrust - load.max(0.0)).max(0.05 * stall);
-        (usable / mass * 1e9 * self.cfg.accel_fraction).min(self.cfg.accel_max_nm_s2)
-    }
+/// Speeding-up limit at the profile's present speed: the model's thrust at that speed and
+/// full drive, less the load estimate, over the moving mass. No acceleration the motor
+/// cannot deliver at the measured preload.
+fn speedup_limit_nm_s2(
+    table: Option<&ModelTable>,
+    mass: f32,
+    load_x_n: f32,
+    v: f32,
+    cfg: &ControllerConfig,
+) -> f32 {
+    let Some(t) = table else { return 0.0 };
+    let thrust = t.full_thrust_n(v.abs() * 1e-6);
+    let load = v.signum() * load_x_n;
+    let stall = t.stall_n();
+    let usable = (thrust - load.max(0.0)).max(0.05 * stall);
+    (usable / mass * 1e9 * cfg.accel_fraction).min(cfg.accel_max_nm_s2)
 }

@@ -25,9 +25,9 @@ impl Controller {
     }
 
     pub(super) fn coarse(&mut self, err_nm: f32) {
-        let v_ref = self.profile.velocity_nm_s();
+        let v_ref = self.motion.profile().velocity_nm_s();
         let mut v_cmd = v_ref + self.cfg.kp_per_s * err_nm;
-        if self.profile.done() {
+        if self.motion.profile().done() {
             // Final approach outside the fine range: below ~0.2 mm/s the model's crawl speeds are
             // not worth trusting, so approach at a speed the motor surely makes.
             v_cmd = err_nm.signum() * v_cmd.abs().max(self.cfg.approach_speed_nm_s);
@@ -52,9 +52,9 @@ impl Controller {
         let sample = self.load_sample(err_nm, stall);
         self.load.update(&sample);
         let mass = self.moving_mass_kg();
-        let braking = self.accel_ref_nm_s2 * v_ref < 0.0;
+        let braking = self.motion.accel_ref_nm_s2() * v_ref < 0.0;
         let counted = self.load.counted_along_n(f32::from(dir), braking);
-        let load_along = counted + f32::from(dir) * mass * self.accel_ref_nm_s2 * 1e-9;
+        let load_along = counted + f32::from(dir) * mass * self.motion.accel_ref_nm_s2() * 1e-9;
         self.model.table.as_ref().map_or(0.0, |t| t.voltage_for(v_cmd.abs() * 1e-6, load_along, self.drive_v))
     }
 
@@ -97,7 +97,7 @@ impl Controller {
     /// by 322 nm).
     fn approach_push_n_s(&self, err_nm: f32, d: f32, stall: f32) -> Option<f32> {
         let stuck = d * self.feedback.speed_nm_s() < APPROACH_STUCK_SHARE * self.cfg.approach_speed_nm_s;
-        if !(self.profile.done() && stuck) {
+        if !(self.motion.profile().done() && stuck) {
             return None;
         }
         let answer_s = self.moving_mass_kg() * self.cfg.approach_speed_nm_s * 1e-9 / stall.max(1e-3);

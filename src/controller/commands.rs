@@ -55,7 +55,7 @@ impl Controller {
                 f.forget_check();
             }
             let here = self.position_nm();
-            self.profile.reset(here);
+            self.motion.profile_mut().reset(here);
             self.enter_hold();
         } else {
             self.activity = Activity::Idle;
@@ -80,14 +80,15 @@ impl Controller {
         let preload_n = self.check_preload()?;
         self.mass.start_move(preload_n);
         self.load.start_move(target_nm < self.position_nm());
-        self.profile.set_target(target_nm);
+        self.motion.profile_mut().set_target(target_nm);
         // The braking rate is fixed for the whole move: a braking curve that changed under the
         // profile's feet would arrive with speed left over. Without a model table yet it is 0,
         // and the first table sets it (`regulate`).
-        self.decel_nm_s2 = self.accel_limit_nm_s2();
+        let decel = self.accel_limit_nm_s2();
+        self.motion.set_decel_nm_s2(decel);
         self.frequency.start_move();
         self.supervisor.start_move();
-        self.on_target_s = 0.0;
+        self.motion.restart_on_target();
         self.activity = Activity::Moving;
         let to_target = (target_nm - self.position_nm()) as f32;
         if !matches!(self.mode, Mode::Coarse) && to_target.abs() > self.cfg.fine_window_nm {
@@ -105,7 +106,7 @@ impl Controller {
     }
 
     pub fn move_relative(&mut self, delta_nm: i64) -> Result<(), CommandError> {
-        self.move_to(self.profile.target_nm().saturating_add(delta_nm))
+        self.move_to(self.motion.profile().target_nm().saturating_add(delta_nm))
     }
 
     /// Smooth stop: decelerate along the profile and hold where it ends. Referencing and
@@ -128,7 +129,7 @@ impl Controller {
             let a = self.model_brake_nm_s2();
             self.brake_to_a_stop(a);
             if a > 0.0 {
-                self.decel_nm_s2 = a;
+                self.motion.set_decel_nm_s2(a);
             }
             return;
         }
@@ -143,10 +144,10 @@ impl Controller {
     /// is. A rate of 0 put the stopping point kilometres away, and the slider ran on to the end
     /// of travel.
     fn brake_to_a_stop(&mut self, rate_nm_s2: f32) {
-        let a = if rate_nm_s2 > 0.0 { rate_nm_s2 } else { self.decel_nm_s2 };
+        let a = if rate_nm_s2 > 0.0 { rate_nm_s2 } else { self.motion.decel_nm_s2() };
         if a > 0.0 {
-            let p = self.profile.stopping_point_nm(a);
-            self.profile.set_target(p);
+            let p = self.motion.profile().stopping_point_nm(a);
+            self.motion.profile_mut().set_target(p);
         } else {
             self.hold_here_or_quiet();
         }
@@ -198,7 +199,7 @@ impl Controller {
             self.activity = Activity::Idle;
             self.servo = false;
             let here = self.position_nm();
-            self.profile.reset(here);
+            self.motion.profile_mut().reset(here);
         }
     }
 
@@ -206,7 +207,7 @@ impl Controller {
     pub fn set_reference_here(&mut self, position_nm: i64) {
         self.feedback.set_position_nm(position_nm);
         let here = self.position_nm();
-        self.profile.reset(here);
+        self.motion.profile_mut().reset(here);
         self.referenced = true;
     }
 

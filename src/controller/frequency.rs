@@ -63,7 +63,7 @@ impl Controller {
     /// The slider's speed along the move (nm/s) and its lag behind the reference (nm).
     fn along_the_move(&self) -> (f32, f32) {
         let sense = self.load.move_sense();
-        let lag = (self.profile.position_nm() - self.position_nm()) as f32 * sense;
+        let lag = (self.motion.profile().position_nm() - self.position_nm()) as f32 * sense;
         (sense * self.feedback.speed_nm_s(), lag)
     }
 

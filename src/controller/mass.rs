@@ -192,8 +192,8 @@ impl Controller {
         if !self.mass.timing() {
             return;
         }
-        let v = self.profile.velocity_nm_s();
-        let braking = self.accel_ref_nm_s2 * v < 0.0;
+        let v = self.motion.profile().velocity_nm_s();
+        let braking = self.motion.accel_ref_nm_s2() * v < 0.0;
         let speeding_up =
             self.state() == State::Moving && !braking && matches!(self.mode, Mode::Coarse) && v != 0.0;
         let period = SpeedUpPeriod {
@@ -210,7 +210,8 @@ impl Controller {
         if self.mass.update(&period) {
             // The braking rate was set at the command from the lighter mass; the profile has not
             // begun to brake yet (checked above).
-            self.decel_nm_s2 = self.decel_nm_s2.min(self.accel_limit_nm_s2());
+            let decel = self.motion.decel_nm_s2().min(self.accel_limit_nm_s2());
+            self.motion.set_decel_nm_s2(decel);
         }
     }
 }

@@ -9,7 +9,6 @@
 //! fault; only [`Controller::clear_fault`] leaves it.
 
 use crate::generator::QuadratureGenerator;
-use crate::profile::Profile;
 
 // One module per job; each adds its methods to `Controller`. `step` below is where to start.
 mod closed_loop;
@@ -24,6 +23,7 @@ mod frequency_policy;
 mod load_observer;
 mod mass;
 pub mod model_cache;
+mod motion;
 mod open_loop;
 mod plain_pi;
 mod referencing;
@@ -36,6 +36,7 @@ use frequency_policy::FrequencyPolicy;
 use load_observer::{LoadObserver, LoadObserverConfig};
 use mass::MassEstimator;
 use model_cache::ModelSlot;
+use motion::Motion;
 use open_loop::OpenLoopRun;
 use plain_pi::{PlainPi, PlainPiConfig};
 use referencing::ReferenceSearch;
@@ -214,7 +215,8 @@ pub struct Controller {
     generator: QuadratureGenerator,
     /// Encoder, speed and preload readings ([`feedback`]).
     feedback: Feedback,
-    profile: Profile,
+    /// The profile, its acceleration and braking rate, the time on target ([`motion`]).
+    motion: Motion,
     /// What the controller is doing, with that activity's own data.
     activity: Activity,
     mode: Mode,
@@ -227,21 +229,13 @@ pub struct Controller {
     pi: PlainPi,
     /// The static offset and the encoder-loss count of the fine mode ([`fine`]).
     fine: FineMode,
-    on_target_s: f32,
     drive_v: f32,
-    accel_ref_nm_s2: f32,
     /// When the drive frequency may change ([`frequency_policy`]).
     frequency: FrequencyPolicy,
-    decel_nm_s2: f32,
     /// The moving mass: told, measured or learned ([`mass`]).
     mass: MassEstimator,
     /// Following error and stall judgement, and the counts the protocol watches.
     supervisor: Supervisor,
-    /// Control periods since start (wraps): the speed-up limit (a model evaluation) is
-    /// refreshed on odd periods only; the profile's acceleration changes little in 100 µs.
-    tick: u32,
-    /// The speed-up limit from the last odd period (nm/s²).
-    speedup_nm_s2: core::cell::Cell<f32>,
 }
 
 impl Controller {
@@ -256,7 +250,7 @@ impl Controller {
         Ok(Controller {
             generator,
             feedback: Feedback::new(&cfg),
-            profile: Profile::at_rest(0),
+            motion: Motion::new(),
             activity: Activity::Idle,
             mode: Mode::Coarse,
             servo: false,
@@ -265,16 +259,11 @@ impl Controller {
             load: LoadObserver::new(LoadObserverConfig::of(&cfg)),
             pi: PlainPi::new(PlainPiConfig::of(&cfg)),
             fine: FineMode::new(FineModeConfig::of(&cfg)),
-            on_target_s: 0.0,
             drive_v: 0.0,
-            accel_ref_nm_s2: 0.0,
             frequency: FrequencyPolicy::new(&cfg),
             model: ModelSlot::new(&cfg, 0),
-            decel_nm_s2: 1.0,
             mass: MassEstimator::new(cfg.moving_mass_kg),
             supervisor: Supervisor::new(SupervisorConfig::of(&cfg)),
-            tick: 0,
-            speedup_nm_s2: core::cell::Cell::new(0.0),
             cfg,
         })
     }
@@ -292,11 +281,11 @@ impl Controller {
     }
 
     pub fn target_nm(&self) -> i64 {
-        self.profile.target_nm()
+        self.motion.profile().target_nm()
     }
 
     pub fn reference_nm(&self) -> i64 {
-        self.profile.position_nm()
+        self.motion.profile().position_nm()
     }
 
     pub fn preload_n(&self) -> Option<f32> {
@@ -376,14 +365,14 @@ impl Controller {
     pub fn in_motion(&self) -> bool {
         match self.state() {
             State::Referencing | State::OpenLoop => true,
-            State::Moving | State::Holding => !self.profile.done(),
+            State::Moving | State::Holding => !self.motion.profile().done(),
             State::Idle | State::Fault(_) => false,
         }
     }
 
     /// As PI's ONT?: holding within the window for the settle time.
     pub fn on_target(&self) -> bool {
-        self.state() == State::Holding && self.on_target_s >= self.cfg.settle_time_s
+        self.state() == State::Holding && self.motion.on_target_s() >= self.cfg.settle_time_s
     }
 
     fn check_preload(&self) -> Result<f32, CommandError> {
@@ -396,13 +385,13 @@ impl Controller {
 
     fn enter_hold(&mut self) {
         self.activity = Activity::Holding;
-        self.on_target_s = 0.0;
+        self.motion.restart_on_target();
     }
 
     /// The reference where the slider is, then holding there with the servo on, else quiet.
     fn hold_here_or_quiet(&mut self) {
         let here = self.position_nm();
-        self.profile.reset(here);
+        self.motion.profile_mut().reset(here);
         if self.servo {
             self.enter_hold();
         } else {
@@ -413,13 +402,13 @@ impl Controller {
 
     /// One control period.
     pub fn step(&mut self, inputs: &Inputs) -> Outputs {
-        self.tick = self.tick.wrapping_add(1);
+        self.motion.tick();
         self.sense(inputs);
         self.supervise();
         // A limit switch in the direction of a closed-loop move stops it where it is.
         if self.state() == State::Moving {
-            let v = self.profile.velocity_nm_s();
-            let toward = self.profile.target_nm() - self.position_nm();
+            let v = self.motion.profile().velocity_nm_s();
+            let toward = self.motion.profile().target_nm() - self.position_nm();
             if (inputs.negative_limit && (v < 0.0 || toward < 0))
                 || (inputs.positive_limit && (v > 0.0 || toward > 0))
             {

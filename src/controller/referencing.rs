@@ -24,7 +24,7 @@ impl Controller {
         let Activity::Referencing(mut search) = self.activity else { return };
         let here = self.position_nm();
         // No profile to follow while searching: keep the reference on the slider.
-        self.profile.reset(here);
+        self.motion.profile_mut().reset(here);
         let found = match self.cfg.reference_signal {
             ReferenceSignal::Index if search.on_limit => inputs.negative_limit,
             ReferenceSignal::Index => inputs.index,

@@ -9,7 +9,7 @@ impl Controller {
     pub(super) fn sense(&mut self, inputs: &Inputs) {
         if self.feedback.update(inputs, self.dt_s) {
             // The first reading: the encoder counts from 0 there.
-            self.profile.reset(0);
+            self.motion.profile_mut().reset(0);
         }
     }
 
@@ -38,7 +38,7 @@ impl Controller {
             return;
         }
         let period = ClosedLoopPeriod {
-            err_nm: (self.profile.position_nm() - self.position_nm()) as f32,
+            err_nm: (self.motion.profile().position_nm() - self.position_nm()) as f32,
             dir: f32::from(self.generator.direction()),
             speed_nm_s: self.feedback.speed_nm_s(),
             drive_v: self.drive_v,
