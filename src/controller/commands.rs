@@ -4,7 +4,6 @@
 use super::open_loop::OpenLoopRun;
 use super::referencing::ReferenceSearch;
 use super::{validate_settings, Activity, CommandError, Controller, ControllerConfig, Mode, State};
-use super::{FineModeConfig, LoadObserverConfig, PlainPiConfig, SupervisorConfig};
 
 impl Controller {
     /// Replaces the settings after checking them. What the hardware fixes (loop and DAC rates,
@@ -26,12 +25,12 @@ impl Controller {
             || cfg.normal_force_ratio != c.normal_force_ratio
             || cfg.rail_coulomb_n != c.rail_coulomb_n
             || cfg.rail_viscous_n_s_per_m != c.rail_viscous_n_s_per_m;
-        self.load.configure(LoadObserverConfig::of(&cfg), recalibrated);
-        self.pi.configure(PlainPiConfig::of(&cfg));
-        self.supervisor.configure(SupervisorConfig::of(&cfg));
-        self.fine.configure(FineModeConfig::of(&cfg));
-        self.frequency.configure(&cfg);
-        self.feedback.configure(&cfg);
+        self.load.configure(cfg.load_observer(), recalibrated);
+        self.pi.configure(cfg.plain_pi());
+        self.supervisor.configure(cfg.supervisor());
+        self.fine.configure(cfg.fine_mode());
+        self.frequency.configure(cfg.profile_wait_lag_nm);
+        self.feedback.configure(cfg.preload);
         // What the speed-ups measured stays through a speed or limit change (`VEL`, `ACC`, …),
         // not through a new mass or calibration.
         let forget = recalibrated || cfg.moving_mass_kg != self.cfg.moving_mass_kg;

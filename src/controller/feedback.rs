@@ -1,8 +1,7 @@
 //! What the sensors say each period: the encoder's position and the slider's filtered speed,
 //! and the preload force cell's reading.
 
-use super::{ControllerConfig, Inputs};
-use crate::sensors::{Encoder, PreloadCell};
+use crate::sensors::{Encoder, PreloadCalibration, PreloadCell};
 
 /// Share of each period's encoder speed taken into the speed estimate: a first-order filter of
 /// 20 periods (2 ms at 10 kHz).
@@ -21,34 +20,35 @@ pub(super) struct Feedback {
 }
 
 impl Feedback {
-    pub(super) fn new(cfg: &ControllerConfig) -> Self {
+    pub(super) fn new(nm_per_count: u32, preload: PreloadCalibration) -> Self {
         Feedback {
-            nm_per_count: cfg.encoder_nm_per_count,
+            nm_per_count,
             encoder: None,
-            preload: PreloadCell::new(cfg.preload),
+            preload: PreloadCell::new(preload),
             speed_nm_s: 0.0,
             prev_speed_nm_s: 0.0,
         }
     }
 
     /// New settings: a new preload calibration is re-primed by the next sample.
-    pub(super) fn configure(&mut self, cfg: &ControllerConfig) {
-        if cfg.preload != self.preload.calibration() {
-            self.preload = PreloadCell::new(cfg.preload);
+    pub(super) fn configure(&mut self, preload: PreloadCalibration) {
+        if preload != self.preload.calibration() {
+            self.preload = PreloadCell::new(preload);
         }
     }
 
-    /// One period's readings; true at the first (the encoder starts counting at 0 there).
-    pub(super) fn update(&mut self, inputs: &Inputs, dt_s: f32) -> bool {
-        self.preload.update(inputs.preload_word);
+    /// One period's readings (the encoder timer's count, the preload cell's word); true at the
+    /// first (the encoder starts counting at 0 there).
+    pub(super) fn update(&mut self, encoder_raw: u16, preload_word: u16, dt_s: f32) -> bool {
+        self.preload.update(preload_word);
         self.prev_speed_nm_s = self.speed_nm_s;
         match self.encoder.as_mut() {
             None => {
-                self.encoder = Some(Encoder::new(inputs.encoder_raw, self.nm_per_count));
+                self.encoder = Some(Encoder::new(encoder_raw, self.nm_per_count));
                 true
             }
             Some(e) => {
-                let delta = e.update(inputs.encoder_raw);
+                let delta = e.update(encoder_raw);
                 let v = delta as f32 * e.nm_per_count() as f32 / dt_s;
                 // 2 ms speed filter: the encoder quantum (50 nm per 100 µs) is 0.5 mm/s.
                 self.speed_nm_s += SPEED_FILTER * (v - self.speed_nm_s);
@@ -94,34 +94,49 @@ impl Feedback {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::defaults::controller_config as default_config;
 
-    fn inputs(encoder_raw: u16) -> Inputs {
-        Inputs { encoder_raw, preload_word: 0, ..Inputs::default() }
+    /// 50 nm counts; preload words 100..4000 valid, 0.01 N per word from word 0, unfiltered.
+    fn feedback() -> Feedback {
+        let cal = PreloadCalibration {
+            zero_word: 0,
+            newton_per_word: 0.01,
+            min_valid_word: 100,
+            max_valid_word: 4000,
+            filter_alpha: 1.0,
+        };
+        Feedback::new(50, cal)
     }
 
     #[test]
     fn first_reading_is_position_zero() {
-        let cfg = default_config();
-        let mut f = Feedback::new(&cfg);
-        assert!(f.update(&inputs(1234), 1e-4));
+        let mut f = feedback();
+        assert!(f.update(1234, 1000, 1e-4));
         assert_eq!(f.position_nm(), 0);
-        assert!(!f.update(&inputs(1236), 1e-4));
-        assert_eq!(f.position_nm(), 2 * i64::from(cfg.encoder_nm_per_count));
+        assert!(!f.update(1236, 1000, 1e-4));
+        assert_eq!(f.position_nm(), 100);
     }
 
     #[test]
     fn speed_is_a_first_order_filter() {
-        // One count a period: v = nm_per_count / dt; after n periods v·(1 − 0.95ⁿ).
-        let cfg = default_config();
-        let mut f = Feedback::new(&cfg);
-        f.update(&inputs(0), 1e-4);
+        // One count a period: v = 50 nm / 0.1 ms = 0.5 mm/s; after n periods v·(1 − 0.95ⁿ).
+        let mut f = feedback();
+        f.update(0, 1000, 1e-4);
         for raw in 1..=20u16 {
-            f.update(&inputs(raw), 1e-4);
+            f.update(raw, 1000, 1e-4);
         }
-        let v = cfg.encoder_nm_per_count as f32 / 1e-4;
-        let expected = v * (1.0 - (1.0f32 - SPEED_FILTER).powi(20));
-        assert!((f.speed_nm_s() - expected).abs() < 1e-3 * v, "{} vs {expected}", f.speed_nm_s());
+        let expected = 5.0e5 * (1.0 - (1.0f32 - SPEED_FILTER).powi(20));
+        assert!((f.speed_nm_s() - expected).abs() < 1.0, "{} vs {expected}", f.speed_nm_s());
         assert!(f.prev_speed_nm_s() < f.speed_nm_s());
+    }
+
+    #[test]
+    fn preload_is_valid_inside_its_words() {
+        let mut f = feedback();
+        assert_eq!(f.preload_n(), None, "no reading yet");
+        f.update(0, 1600, 1e-4);
+        // 1600 words · 0.01 N.
+        assert!(f.preload_n().is_some_and(|n| (n - 16.0).abs() < 1e-4));
+        f.update(0, 4000, 1e-4);
+        assert_eq!(f.preload_n(), None, "saturated");
     }
 }

@@ -2,7 +2,7 @@
 //! and carries it by a fraction of the stroke. Corrections step and settle, and the encoder must
 //! see each one (encoder-loss check).
 
-use super::{Controller, ControllerConfig, FaultCode, Mode, DAC_SAMPLES_PER_STEP};
+use super::{Controller, FaultCode, Mode, DAC_SAMPLES_PER_STEP};
 use crate::fastmath::clamp_sym_f32;
 
 /// Fine-mode encoder-loss check: a correction expected to move at least this many counts that
@@ -50,13 +50,6 @@ pub(super) struct FineModeConfig {
     pub(super) room_v: f32,
     /// Hand-off to the fine mode within this distance of the target (nm).
     pub(super) window_nm: f32,
-}
-
-impl FineModeConfig {
-    pub(super) fn of(c: &ControllerConfig) -> Self {
-        let d = &c.dac;
-        FineModeConfig { room_v: (d.mid_v() - d.min_v).min(d.max_v - d.mid_v()), window_nm: c.fine_window_nm }
-    }
 }
 
 /// What one fine period needs to know.

@@ -4,8 +4,6 @@
 //! share of the stall force. Which frequency is best is the model table's choice
 //! (`frequency.rs`).
 
-use super::ControllerConfig;
-
 /// A chosen frequency is kept while the load along the move stays within this share of the
 /// stall force of the load it was chosen for (a new choice costs a dozen model evaluations off
 /// the tick, and an observer learning an unknown load should not ask for one every few ms).
@@ -42,12 +40,13 @@ pub(super) struct FrequencyPolicy {
 }
 
 impl FrequencyPolicy {
-    pub(super) fn new(c: &ControllerConfig) -> Self {
-        FrequencyPolicy { wait_lag_nm: c.profile_wait_lag_nm, trial: None, pinned_hz: None }
+    /// `wait_lag_nm`: the lag (nm) past which the profile waits for the slider.
+    pub(super) fn new(wait_lag_nm: f32) -> Self {
+        FrequencyPolicy { wait_lag_nm, trial: None, pinned_hz: None }
     }
 
-    pub(super) fn configure(&mut self, c: &ControllerConfig) {
-        self.wait_lag_nm = c.profile_wait_lag_nm;
+    pub(super) fn configure(&mut self, wait_lag_nm: f32) {
+        self.wait_lag_nm = wait_lag_nm;
     }
 
     /// A move starts: no trial, nothing pinned.
@@ -130,7 +129,7 @@ mod tests {
     const DT_S: f32 = 1e-4;
 
     fn policy() -> FrequencyPolicy {
-        FrequencyPolicy { wait_lag_nm: 1000.0, trial: None, pinned_hz: None }
+        FrequencyPolicy::new(1000.0)
     }
 
     /// Periods until the trial matures (at most 1000) and the trial.

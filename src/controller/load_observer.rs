@@ -3,7 +3,6 @@
 //! accelerated the mass, is what the load took) plus an integral on the position error (what the
 //! model gets wrong), and what the last moves each way ended with.
 
-use super::ControllerConfig;
 use crate::fastmath::clamp_sym_f32;
 
 /// The observer's share of each sample: normally, and while the slider slides back under drive
@@ -20,16 +19,6 @@ pub(super) struct LoadObserverConfig {
     pub(super) ki_n_per_nm_s: f32,
     /// Feedforward on: without it there is no estimate to carry between moves.
     pub(super) feedforward: bool,
-}
-
-impl LoadObserverConfig {
-    pub(super) fn of(c: &ControllerConfig) -> Self {
-        LoadObserverConfig {
-            expected_load_n: c.expected_load_n,
-            ki_n_per_nm_s: c.ki_n_per_nm_s,
-            feedforward: c.feedforward,
-        }
-    }
 }
 
 /// One coarse period's evidence about the load.

@@ -31,16 +31,16 @@ mod supervision;
 mod supervisor;
 pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
 use feedback::Feedback;
-use fine::{FineMode, FineModeConfig, FineStep};
+use fine::{FineMode, FineStep};
 use frequency_policy::FrequencyPolicy;
-use load_observer::{LoadObserver, LoadObserverConfig};
+use load_observer::LoadObserver;
 use mass::MassEstimator;
 use model_cache::ModelSlot;
 use motion::Motion;
 use open_loop::OpenLoopRun;
-use plain_pi::{PlainPi, PlainPiConfig};
+use plain_pi::PlainPi;
 use referencing::ReferenceSearch;
-use supervisor::{Supervisor, SupervisorConfig};
+use supervisor::Supervisor;
 
 /// DAC samples produced per control period (DAC rate / loop rate).
 pub const DAC_SAMPLES_PER_STEP: usize = 20;
@@ -249,21 +249,21 @@ impl Controller {
         generator.set_frequency_hz(cfg.drive_freq_hz);
         Ok(Controller {
             generator,
-            feedback: Feedback::new(&cfg),
+            feedback: Feedback::new(cfg.encoder_nm_per_count, cfg.preload),
             motion: Motion::new(),
             activity: Activity::Idle,
             mode: Mode::Coarse,
             servo: false,
             referenced: false,
             dt_s: 1.0 / cfg.loop_hz as f32,
-            load: LoadObserver::new(LoadObserverConfig::of(&cfg)),
-            pi: PlainPi::new(PlainPiConfig::of(&cfg)),
-            fine: FineMode::new(FineModeConfig::of(&cfg)),
+            load: LoadObserver::new(cfg.load_observer()),
+            pi: PlainPi::new(cfg.plain_pi()),
+            fine: FineMode::new(cfg.fine_mode()),
             drive_v: 0.0,
-            frequency: FrequencyPolicy::new(&cfg),
+            frequency: FrequencyPolicy::new(cfg.profile_wait_lag_nm),
             model: ModelSlot::new(&cfg, 0),
             mass: MassEstimator::new(cfg.moving_mass_kg),
-            supervisor: Supervisor::new(SupervisorConfig::of(&cfg)),
+            supervisor: Supervisor::new(cfg.supervisor()),
             cfg,
         })
     }

@@ -2,7 +2,6 @@
 //! error straight to signed drive volts, the integral held while the output is saturated the same
 //! way (anti-windup).
 
-use super::ControllerConfig;
 use crate::fastmath::clamp_sym_f32;
 
 /// The gains and the output bound.
@@ -12,16 +11,6 @@ pub(super) struct PlainPiConfig {
     pub(super) ki_v_per_nm_s: f32,
     /// Largest drive (V peak-to-peak): the output's and the integral's bound.
     pub(super) max_v: f32,
-}
-
-impl PlainPiConfig {
-    pub(super) fn of(c: &ControllerConfig) -> Self {
-        PlainPiConfig {
-            kp_v_per_nm: c.fb_kp_v_per_nm,
-            ki_v_per_nm_s: c.fb_ki_v_per_nm_s,
-            max_v: c.max_drive_v,
-        }
-    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -7,7 +7,7 @@ use super::{Activity, CommandError, Controller, FaultCode, Inputs, Mode, State};
 
 impl Controller {
     pub(super) fn sense(&mut self, inputs: &Inputs) {
-        if self.feedback.update(inputs, self.dt_s) {
+        if self.feedback.update(inputs.encoder_raw, inputs.preload_word, self.dt_s) {
             // The first reading: the encoder counts from 0 there.
             self.motion.profile_mut().reset(0);
         }

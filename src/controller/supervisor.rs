@@ -2,7 +2,7 @@
 //! protocol watches (faults, limit-switch stops, failed referencing). The controller reads the
 //! sensors and trips the fault it returns (`supervision.rs`).
 
-use super::{ControllerConfig, FaultCode};
+use super::FaultCode;
 
 /// The limits the supervisor judges by.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -12,17 +12,6 @@ pub(super) struct SupervisorConfig {
     pub(super) encoder_jump_counts: i32,
     /// Largest drive (V): "near full" and "full" drive are shares of it.
     pub(super) max_drive_v: f32,
-}
-
-impl SupervisorConfig {
-    pub(super) fn of(c: &ControllerConfig) -> Self {
-        SupervisorConfig {
-            following_error_limit_nm: c.following_error_limit_nm,
-            stall_time_s: c.stall_time_s,
-            encoder_jump_counts: c.encoder_jump_counts,
-            max_drive_v: c.max_drive_v,
-        }
-    }
 }
 
 /// One closed-loop period as the supervisor sees it.
