@@ -10,7 +10,12 @@
 
 use crate::generator::QuadratureGenerator;
 
-// One module per job; each adds its methods to `Controller`. `step` below is where to start.
+// The parts own their state, each with its settings and its own tests: `feedback` (sensors),
+// `motion` (the profile), `load_observer`, `plain_pi`, `fine` (`FineMode`), `mass`,
+// `frequency_policy`, `supervisor`. The other modules are `Controller`'s jobs, which run the
+// parts and write the generator: `supervision` (sense, supervise), `closed_loop`, `coarse`, `fine`,
+// `referencing`, `open_loop`, `commands`, `frequency` and `model_cache` (the model table).
+// `step` below is where to start.
 mod closed_loop;
 mod coarse;
 mod commands;
@@ -211,30 +216,36 @@ impl Activity {
 #[derive(Clone)]
 pub struct Controller {
     cfg: ControllerConfig,
+    /// The control period (s): one over the loop rate.
+    dt_s: f32,
+    /// The thrust model's table and what it asks for ([`model_cache`]).
     model: ModelSlot,
     generator: QuadratureGenerator,
-    /// Encoder, speed and preload readings ([`feedback`]).
-    feedback: Feedback,
-    /// The profile, its acceleration and braking rate, the time on target ([`motion`]).
-    motion: Motion,
-    /// What the controller is doing, with that activity's own data.
+    /// What the controller is doing, with that activity's own data; how the closed loop drives;
+    /// the servo and referencing flags.
     activity: Activity,
     mode: Mode,
     servo: bool,
     referenced: bool,
-    dt_s: f32,
+    /// The drive voltage last commanded (V peak-to-peak): the inverse model's next hint, and
+    /// what the supervisor and the load observer call near full drive.
+    drive_v: f32,
+    // The parts, each with its own state (and settings, cut from `cfg` in `config.rs`):
+    /// Encoder, speed and preload readings ([`feedback`]).
+    feedback: Feedback,
+    /// The profile, its acceleration and braking rate, the time on target ([`motion`]).
+    motion: Motion,
     /// The load estimate the feedforward pushes against ([`load_observer`]).
     load: LoadObserver,
-    /// The coarse mode's feedback without the model.
+    /// The coarse mode's feedback without the model ([`plain_pi`]).
     pi: PlainPi,
     /// The static offset and the encoder-loss count of the fine mode ([`fine`]).
     fine: FineMode,
-    drive_v: f32,
-    /// When the drive frequency may change ([`frequency_policy`]).
-    frequency: FrequencyPolicy,
     /// The moving mass: told, measured or learned ([`mass`]).
     mass: MassEstimator,
-    /// Following error and stall judgement, and the counts the protocol watches.
+    /// When the drive frequency may change ([`frequency_policy`]).
+    frequency: FrequencyPolicy,
+    /// Following error and stall judgement, and the counts the protocol watches ([`supervisor`]).
     supervisor: Supervisor,
 }
 
