@@ -76,10 +76,11 @@ impl Controller {
             self.motion.set_decel_nm_s2(a);
         }
         // The speed-up limit at the profile's speed before this period's step.
-        let v = self.motion.profile().velocity_nm_s();
-        let (mass, load) = (self.moving_mass_kg(), self.load.estimate_n());
+        let v_nm_s = self.motion.profile().velocity_nm_s();
+        let (mass_kg, load_x_n) = (self.moving_mass_kg(), self.load.estimate_n());
         let (table, cfg) = (self.model.table.as_ref(), &self.cfg);
-        self.motion.step(self.dt_s, v_max, waiting, || speedup_limit_nm_s2(table, mass, load, v, cfg));
+        self.motion
+            .step(self.dt_s, v_max, waiting, || speedup_limit_nm_s2(table, mass_kg, load_x_n, v_nm_s, cfg));
     }
 
     /// The profile's speed limit this period (nm/s), and whether it waits for the slider.
@@ -200,15 +201,15 @@ impl Controller {
 /// cannot deliver at the measured preload.
 fn speedup_limit_nm_s2(
     table: Option<&ModelTable>,
-    mass: f32,
+    mass_kg: f32,
     load_x_n: f32,
-    v: f32,
+    v_nm_s: f32,
     cfg: &ControllerConfig,
 ) -> f32 {
     let Some(t) = table else { return 0.0 };
-    let thrust = t.full_thrust_n(v.abs() * 1e-6);
-    let load = v.signum() * load_x_n;
+    let thrust = t.full_thrust_n(v_nm_s.abs() * 1e-6);
+    let load = v_nm_s.signum() * load_x_n;
     let stall = t.stall_n();
     let usable = (thrust - load.max(0.0)).max(0.05 * stall);
-    (usable / mass * 1e9 * cfg.accel_fraction).min(cfg.accel_max_nm_s2)
+    (usable / mass_kg * 1e9 * cfg.accel_fraction).min(cfg.accel_max_nm_s2)
 }

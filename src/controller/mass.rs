@@ -137,8 +137,8 @@ impl MassEstimator {
         let net_n = p.sense * (p.thrust_x_n - p.load_x_n);
         s.t_s += p.dt_s;
         s.impulse_n_s += net_n * p.dt_s;
-        let along = p.sense * p.speed_nm_s;
-        if p.half_top_nm_s <= 0.0 || along < p.half_top_nm_s {
+        let along_nm_s = p.sense * p.speed_nm_s;
+        if p.half_top_nm_s <= 0.0 || along_nm_s < p.half_top_nm_s {
             self.speedup = Some(s);
             return false;
         }
@@ -148,15 +148,23 @@ impl MassEstimator {
             return false;
         }
         let impulse = s.impulse_n_s - net_n * lag_s;
-        let measured_kg = impulse / (along * 1e-9);
+        let measured_kg = impulse / (along_nm_s * 1e-9);
         let before = self.mass_kg;
-        self.mass_kg = self.reading_kg(measured_kg, s.t_s, lag_s, along, p);
+        self.mass_kg = self.reading_kg(measured_kg, s.t_s, lag_s, along_nm_s, p);
         self.mass_kg > before
     }
 
-    /// What a speed-up's `measured_kg` (timed over `t_s`, the filter's lag `lag_s`, up to `along`
-    /// nm/s) makes the mass in use: a payload, the learned mass moved toward it, or unchanged.
-    fn reading_kg(&mut self, measured_kg: f32, t_s: f32, lag_s: f32, along: f32, p: &SpeedUpPeriod) -> f32 {
+    /// What a speed-up's `measured_kg` (timed over `t_s`, the filter's lag `lag_s`, up to
+    /// `along_nm_s`) makes the mass in use: a payload, the learned mass moved toward it, or
+    /// unchanged.
+    fn reading_kg(
+        &mut self,
+        measured_kg: f32,
+        t_s: f32,
+        lag_s: f32,
+        along_nm_s: f32,
+        p: &SpeedUpPeriod,
+    ) -> f32 {
         let told = self.told_kg;
         let learned = self.learned_kg;
         let measured_kg = measured_kg.min(MOST_TIMES * told);
@@ -169,8 +177,9 @@ impl MassEstimator {
             // (a long speed-up is stall-limited), stall force over no-load speed, both cached:
             // no table lookup in the tick. Without this a right model taught the 50 kg carriage
             // 54.9 kg.
-            let fall_n = p.limits.map_or(0.0, |(stall, v0)| stall * (along * 1e-6 / v0.max(1e-3)).min(1.0));
-            let measured_kg = measured_kg - fall_n.max(0.0) * lag_s / (along * 1e-9);
+            let fall_n =
+                p.limits.map_or(0.0, |(stall, v0)| stall * (along_nm_s * 1e-6 / v0.max(1e-3)).min(1.0));
+            let measured_kg = measured_kg - fall_n.max(0.0) * lag_s / (along_nm_s * 1e-9);
             self.learned_kg = (learned + LEARN_SHARE * (measured_kg - learned)).max(told);
             self.learned_preload_n = p.preload_n;
             self.learned_kg
