@@ -94,6 +94,11 @@ impl PreloadCell {
         }
     }
 
+    /// The calibration the cell reads with.
+    pub fn calibration(&self) -> PreloadCalibration {
+        self.cal
+    }
+
     /// Filtered force (N); meaningful only while [`Self::valid`].
     pub fn force_n(&self) -> f32 {
         self.filtered_n

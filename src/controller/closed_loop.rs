@@ -3,7 +3,8 @@
 //! the fine (static) mode.
 
 use super::fine::FineStep;
-use super::{Controller, Mode, State};
+use super::model_cache::ModelTable;
+use super::{Controller, ControllerConfig, Mode, State};
 
 /// The foot pushes once per drive period, and a light carriage's speed ripples within one: a
 /// stop squeezed into a few periods is over before the loop (one period late, speed measured
@@ -22,7 +23,68 @@ const STOP_SHARE_OF_FINE_WINDOW: f32 = 0.25;
 const MIN_BRAKE_NM_S2: f32 = 1.0e6;
 
 impl Controller {
+    /// One closed-loop period (Moving and Holding): the profile, then the mode's control.
     pub(super) fn regulate(&mut self) {
+        self.step_profile();
+        if self.state() == State::Moving && self.motion.profile().done() {
+            self.enter_hold();
+        }
+        self.judge_frequency_trial();
+        let pos = self.position_nm();
+        let err = (self.motion.profile().position_nm() - pos) as f32;
+        let to_target = (self.motion.profile().target_nm() - pos) as f32;
+
+        // On-target bookkeeping.
+        let within = self.state() == State::Holding
+            && (self.motion.profile().target_nm() - pos).abs() <= self.cfg.on_target_window_nm;
+        self.motion.count_on_target(within, self.dt_s);
+
+        match self.mode {
+            Mode::Coarse => {
+                if !self.hand_to_fine(to_target) {
+                    self.coarse(err);
+                }
+            }
+            Mode::FineEntering => {
+                self.generator.set_amplitude_v(0.0);
+                if self.generator.amplitude_v() == 0.0 {
+                    // No check pending; the misses carry over ([`super::fine::FineMode`]).
+                    self.mode = Mode::Fine(FineStep::at(self.fine.offset_v()));
+                }
+            }
+            Mode::Fine(_) => {
+                let fine_room_nm = self.fine_room_v() * self.model.fine_nm_per_v;
+                if to_target.abs() > fine_room_nm.max(self.cfg.fine_window_nm) * 1.5 {
+                    self.mode = Mode::Coarse;
+                    return;
+                }
+                self.fine(err);
+            }
+        }
+    }
+
+    /// The profile's period: its speed within the model's limits (and waiting for a lagging
+    /// slider), its braking rate, and the acceleration the feedforward counts as M·a.
+    fn step_profile(&mut self) {
+        let (v_max, waiting) = self.profile_speed_limit_nm_s();
+        if self.motion.decel_nm_s2() <= 0.0 {
+            // A move commanded while the model table was being rebuilt (a setting changed just
+            // before it: `VEL` then `MOV`) got no braking rate at its command, and a profile that
+            // cannot brake crawls: it takes the rate from the first table (1 mm had not settled
+            // after 3 s).
+            let a = self.accel_limit_nm_s2();
+            self.motion.set_decel_nm_s2(a);
+        }
+        // The speed-up limit at the profile's speed before this period's step.
+        let v_nm_s = self.motion.profile().velocity_nm_s();
+        let (mass_kg, load_x_n) = (self.moving_mass_kg(), self.load.estimate_n());
+        let (table, cfg) = (self.model.table.as_ref(), &self.cfg);
+        self.motion
+            .step(self.dt_s, v_max, waiting, || speedup_limit_nm_s2(table, mass_kg, load_x_n, v_nm_s, cfg));
+    }
+
+    /// The profile's speed limit this period (nm/s), and whether it waits for the slider.
+    fn profile_speed_limit_nm_s(&self) -> (f32, bool) {
         // Never below a crawl: a load estimate at or past the model's stall force (told, or
         // learned) leaves the model no speed at all, and a profile that cannot start hangs the
         // move with the drive short of full, where no stall is judged (plain feedback against a
@@ -34,100 +96,43 @@ impl Controller {
         let mut v_max = self.speed_limit_nm_s().max(crawl);
         // A reference running away from a slider that cannot follow (an unknown load, a preload
         // change) only builds following error: past some lag the profile waits for the slider.
-        let lag =
-            (self.profile.position_nm() - self.position_nm()) as f32 * self.profile.velocity_nm_s().signum();
+        let lag = (self.motion.profile().position_nm() - self.position_nm()) as f32
+            * self.motion.profile().velocity_nm_s().signum();
         let waiting = lag > self.cfg.profile_wait_lag_nm;
         if waiting {
-            v_max = v_max.min((self.speed_nm_s * self.profile.velocity_nm_s().signum()).max(0.0));
+            v_max = v_max
+                .min((self.feedback.speed_nm_s() * self.motion.profile().velocity_nm_s().signum()).max(0.0));
         }
-        if self.decel_nm_s2 <= 0.0 {
-            // A move commanded while the model table was being rebuilt (a setting changed just
-            // before it: `VEL` then `MOV`) got no braking rate at its command, and a profile that
-            // cannot brake crawls: it takes the rate from the first table (1 mm had not settled
-            // after 3 s).
-            self.decel_nm_s2 = self.accel_limit_nm_s2();
-        }
-        let v_before = self.profile.velocity_nm_s();
-        let (dt_s, decel) = (self.dt_s, self.decel_nm_s2);
-        // The speed-up limit costs a model evaluation: only when the profile speeds up.
-        let odd = self.tick & 1 == 1;
-        let up = || {
-            if odd || self.speedup_nm_s2.get() <= 0.0 {
-                self.speedup_nm_s2.set(self.speedup_limit_nm_s2());
-            }
-            self.speedup_nm_s2.get()
-        };
-        let mut profile = self.profile;
-        profile.step(dt_s, v_max, up, decel);
-        self.profile = profile;
-        self.accel_ref_nm_s2 = (self.profile.velocity_nm_s() - v_before) / self.dt_s;
-        if waiting && self.accel_ref_nm_s2 * v_before < 0.0 {
-            // A profile slowing down to wait for a lagging slider asks for no braking: fed
-            // forward as M·a it took the drive away from a slider that was already behind
-            // (5 kg against an unknown 2 N: 97 V fell to 33 V, and the slider slid back 0.8 µm).
-            self.accel_ref_nm_s2 = 0.0;
-        }
-        if self.state() == State::Moving && self.profile.done() {
-            self.enter_hold();
-        }
-        self.judge_frequency_trial();
-        let pos = self.position_nm();
-        let err = (self.profile.position_nm() - pos) as f32;
-        let to_target = (self.profile.target_nm() - pos) as f32;
+        (v_max, waiting)
+    }
 
-        // On-target bookkeeping.
-        if self.state() == State::Holding
-            && (self.profile.target_nm() - pos).abs() <= self.cfg.on_target_window_nm
-        {
-            self.on_target_s += self.dt_s;
-        } else {
-            self.on_target_s = 0.0;
+    /// In the coarse mode: hands the move to the fine mode when the static stroke takes what is
+    /// left (true: the sine ramps out this period). A light carriage rides the foot and swings
+    /// with it within each drive period (up to ~300 nm at full drive): finishing in the coarse
+    /// mode, its 1 and 10 µm steps overshot by the swing (180–440 nm). It goes to the fine mode
+    /// while it still moves, once the sine's end stops it where the fine stroke reaches the
+    /// target whichever way the swing leaves it (1–60 nm).
+    fn hand_to_fine(&mut self, to_target: f32) -> bool {
+        let early = !self.motion.profile().done()
+            && self.stop_with_sine_quiet_nm(to_target).is_some_and(|stop| {
+                let swing = self.model.table.as_ref().map_or(0.0, |t| t.swing_nm(self.drive_v));
+                let rest = to_target - stop;
+                self.fine_takes(rest + swing) && self.fine_takes(rest - swing)
+            });
+        if early {
+            // The coarse part is over: the reference waits at the target instead of the fine
+            // mode chasing its last few hundred nm (a carriage ahead of it stepped back first;
+            // 10 µm steps of 0.1 and 0.3 kg took up to 5 ms longer).
+            let target = self.motion.profile().target_nm();
+            self.motion.profile_mut().reset(target);
         }
-
-        let fine_room_nm = self.fine_room_v() * self.model.fine_nm_per_v;
-        match self.mode {
-            Mode::Coarse => {
-                // A light carriage rides the foot and swings with it within each drive period (up
-                // to ~300 nm at full drive): finishing in the coarse mode, its 1 and 10 µm steps
-                // overshot by the swing (180–440 nm). It goes to the fine mode while it still
-                // moves, once the sine's end stops it where the fine stroke reaches the target
-                // whichever way the swing leaves it (1–60 nm).
-                let early = !self.profile.done()
-                    && self.stop_with_sine_quiet_nm(to_target).is_some_and(|stop| {
-                        let swing = self.model.table.as_ref().map_or(0.0, |t| t.swing_nm(self.drive_v));
-                        let rest = to_target - stop;
-                        self.fine_takes(rest + swing) && self.fine_takes(rest - swing)
-                    });
-                if early {
-                    // The coarse part is over: the reference waits at the target instead of the
-                    // fine mode chasing its last few hundred nm (a carriage ahead of it stepped
-                    // back first; 10 µm steps of 0.1 and 0.3 kg took up to 5 ms longer).
-                    let target = self.profile.target_nm();
-                    self.profile.reset(target);
-                }
-                if early || (self.profile.done() && self.fine_takes(to_target)) {
-                    self.mode = Mode::FineEntering;
-                    self.generator.set_amplitude_v(0.0);
-                    self.drive_v = 0.0;
-                    return;
-                }
-                self.coarse(err);
-            }
-            Mode::FineEntering => {
-                self.generator.set_amplitude_v(0.0);
-                if self.generator.amplitude_v() == 0.0 {
-                    // No check pending; the misses carry over (see `fine_misses`).
-                    self.mode = Mode::Fine(FineStep::at(self.fine_offset_v));
-                }
-            }
-            Mode::Fine(_) => {
-                if to_target.abs() > fine_room_nm.max(self.cfg.fine_window_nm) * 1.5 {
-                    self.mode = Mode::Coarse;
-                    return;
-                }
-                self.fine(err);
-            }
+        if early || (self.motion.profile().done() && self.fine_takes(to_target)) {
+            self.mode = Mode::FineEntering;
+            self.generator.set_amplitude_v(0.0);
+            self.drive_v = 0.0;
+            return true;
         }
+        false
     }
 
     /// Where the slider stops if its sine stops now (nm from here, along its speed): the still
@@ -141,7 +146,7 @@ impl Controller {
         }
         // The measured speed lags the slider by a few periods: the faster of it and the
         // reference's, with its sign.
-        let (measured, reference) = (self.speed_nm_s, self.profile.velocity_nm_s());
+        let (measured, reference) = (self.feedback.speed_nm_s(), self.motion.profile().velocity_nm_s());
         let v_m_s = (if measured.abs() >= reference.abs() { measured } else { reference }) * 1e-9;
         let grip_n = self.grip_n();
         if grip_n <= 0.0 {
@@ -153,16 +158,12 @@ impl Controller {
 
     /// What the still foot's friction holds or brakes the carriage with (N): μ·F0.
     pub(super) fn grip_n(&self) -> f32 {
-        self.preload.force_n().max(0.0) * self.cfg.mu_dynamic
+        self.feedback.preload_force_n().max(0.0) * self.cfg.mu_dynamic
     }
 
-    /// Whether the fine mode's static stroke takes a move of `to_target_nm` from here: within the
-    /// fine window and, with the offset already on the stacks, inside the stroke with margin.
+    /// Whether the fine mode's static stroke takes a move of `to_target_nm` from here.
     pub(super) fn fine_takes(&self, to_target_nm: f32) -> bool {
-        let nm_per_v = self.model.fine_nm_per_v.max(1e-3);
-        let fine_room_nm = self.fine_room_v() * self.model.fine_nm_per_v;
-        let fits = (self.fine_offset_v + to_target_nm / nm_per_v).abs() < 0.9 * self.fine_room_v();
-        fits && to_target_nm.abs() < self.cfg.fine_window_nm.min(0.8 * fine_room_nm)
+        self.fine.takes(to_target_nm, self.model.fine_nm_per_v)
     }
 
     /// Highest profile speed: the model's speed at full drive against the estimated load in the
@@ -172,8 +173,9 @@ impl Controller {
     /// mm/s against the 2 the plant makes while it counted only half (1 mm 1.68 → 1.28× the limit).
     pub(super) fn speed_limit_nm_s(&self) -> f32 {
         let Some(t) = self.model.table.as_ref() else { return 0.0 };
-        let dir = if self.profile.target_nm() >= self.profile.position_nm() { 1.0 } else { -1.0 };
-        let load = (dir * self.thrust_bias_n).max(-t.stall_n());
+        let dir =
+            if self.motion.profile().target_nm() >= self.motion.profile().position_nm() { 1.0 } else { -1.0 };
+        let load = (dir * self.load.estimate_n()).max(-t.stall_n());
         (t.speed_at_load_mm_s(load) * 1e6 * self.cfg.speed_fraction).min(self.cfg.velocity_max_nm_s)
     }
 
@@ -189,21 +191,25 @@ impl Controller {
         let mass = self.moving_mass_kg();
         let stall = self.cached_limits().map_or(0.0, |(f, _)| f);
         // Leave the load estimate's share of the thrust for the load.
-        let usable = (stall - self.thrust_bias_n.abs()).max(0.3 * stall);
+        let usable = (stall - self.load.estimate_n().abs()).max(0.3 * stall);
         usable / mass * 1e9 * self.cfg.accel_fraction
     }
+}
 
-    /// Speeding-up limit at the profile's present speed: the model's thrust at that speed and
-    /// full drive, less the load estimate, over the moving mass. No acceleration the motor
-    /// cannot deliver at the measured preload.
-    pub(super) fn speedup_limit_nm_s2(&self) -> f32 {
-        let mass = self.moving_mass_kg();
-        let Some(t) = self.model.table.as_ref() else { return 0.0 };
-        let v = self.profile.velocity_nm_s();
-        let thrust = t.full_thrust_n(v.abs() * 1e-6);
-        let load = v.signum() * self.thrust_bias_n;
-        let stall = t.stall_n();
-        let usable = (thrust - load.max(0.0)).max(0.05 * stall);
-        (usable / mass * 1e9 * self.cfg.accel_fraction).min(self.cfg.accel_max_nm_s2)
-    }
+/// Speeding-up limit at the profile's present speed: the model's thrust at that speed and
+/// full drive, less the load estimate, over the moving mass. No acceleration the motor
+/// cannot deliver at the measured preload.
+fn speedup_limit_nm_s2(
+    table: Option<&ModelTable>,
+    mass_kg: f32,
+    load_x_n: f32,
+    v_nm_s: f32,
+    cfg: &ControllerConfig,
+) -> f32 {
+    let Some(t) = table else { return 0.0 };
+    let thrust = t.full_thrust_n(v_nm_s.abs() * 1e-6);
+    let load = v_nm_s.signum() * load_x_n;
+    let stall = t.stall_n();
+    let usable = (thrust - load.max(0.0)).max(0.05 * stall);
+    (usable / mass_kg * 1e9 * cfg.accel_fraction).min(cfg.accel_max_nm_s2)
 }

@@ -3,9 +3,7 @@
 
 use super::open_loop::OpenLoopRun;
 use super::referencing::ReferenceSearch;
-use super::SpeedUp;
 use super::{validate_settings, Activity, CommandError, Controller, ControllerConfig, Mode, State};
-use crate::sensors::PreloadCell;
 
 impl Controller {
     /// Replaces the settings after checking them. What the hardware fixes (loop and DAC rates,
@@ -27,23 +25,17 @@ impl Controller {
             || cfg.normal_force_ratio != c.normal_force_ratio
             || cfg.rail_coulomb_n != c.rail_coulomb_n
             || cfg.rail_viscous_n_s_per_m != c.rail_viscous_n_s_per_m;
-        if recalibrated {
-            self.observed_bias_n = cfg.expected_load_n;
-            self.integral_n = 0.0;
-            self.thrust_bias_n = cfg.expected_load_n;
-            self.end_bias_n = [None; 2];
-        }
-        if cfg.preload != self.cfg.preload {
-            // Re-primed by the next sample.
-            self.preload = PreloadCell::new(cfg.preload);
-        }
+        self.load.configure(cfg.load_observer(), recalibrated);
+        self.pi.configure(cfg.plain_pi());
+        self.supervisor.configure(cfg.supervisor());
+        self.fine.configure(cfg.fine_mode());
+        self.frequency.configure(cfg.profile_wait_lag_nm);
+        self.feedback.configure(cfg.preload);
         // What the speed-ups measured stays through a speed or limit change (`VEL`, `ACC`, …),
         // not through a new mass or calibration.
         let forget = recalibrated || cfg.moving_mass_kg != self.cfg.moving_mass_kg;
+        self.mass.configure(cfg.moving_mass_kg, forget);
         self.cfg = cfg;
-        if forget {
-            self.forget_mass();
-        }
         self.model.reconfigure(&self.cfg);
         Ok(())
     }
@@ -57,12 +49,12 @@ impl Controller {
         }
         self.servo = on;
         if on {
-            self.fine_misses = 0;
+            self.fine.forget_misses();
             if let Mode::Fine(f) = &mut self.mode {
-                f.expect_counts = 0;
+                f.forget_check();
             }
             let here = self.position_nm();
-            self.profile.reset(here);
+            self.motion.profile_mut().reset(here);
             self.enter_hold();
         } else {
             self.activity = Activity::Idle;
@@ -85,19 +77,17 @@ impl Controller {
             return Err(CommandError::OutOfTravel);
         }
         let preload_n = self.check_preload()?;
-        self.forget_mass_off_its_preload(preload_n);
-        self.start_load_estimate(target_nm);
-        self.profile.set_target(target_nm);
+        self.mass.start_move(preload_n);
+        self.load.start_move(target_nm < self.position_nm());
+        self.motion.profile_mut().set_target(target_nm);
         // The braking rate is fixed for the whole move: a braking curve that changed under the
         // profile's feet would arrive with speed left over. Without a model table yet it is 0,
         // and the first table sets it (`regulate`).
-        self.decel_nm_s2 = self.accel_limit_nm_s2();
-        self.speedup = Some(SpeedUp::start());
-        self.frequency_trial = None;
-        self.pinned_frequency_hz = None;
-        self.max_following_error_nm = 0.0;
-        self.on_target_s = 0.0;
-        self.limit_stopped = false;
+        let decel = self.accel_limit_nm_s2();
+        self.motion.set_decel_nm_s2(decel);
+        self.frequency.start_move();
+        self.supervisor.start_move();
+        self.motion.restart_on_target();
         self.activity = Activity::Moving;
         let to_target = (target_nm - self.position_nm()) as f32;
         if !matches!(self.mode, Mode::Coarse) && to_target.abs() > self.cfg.fine_window_nm {
@@ -114,45 +104,8 @@ impl Controller {
         Ok(())
     }
 
-    /// The load estimate a move starts from. What the observer learns in a move is the load plus
-    /// the model's thrust error along the drive; the error changes sign with the drive, so an
-    /// estimate carried into a move the other way starts it with twice the error (ten
-    /// back-and-forth 1 mm moves, 1 kg carriage, plant μ 15 % below the table's: 0.71 µm peak
-    /// following error on the first, 2.0–2.2 on every later one). Once a move each way has
-    /// ended, the move starts from the mean of their end estimates: the load, which both share,
-    /// without the error.
-    fn start_load_estimate(&mut self, target_nm: i64) {
-        if !self.cfg.feedforward {
-            return;
-        }
-        if let Some(slot) = self.last_sense.and_then(|s| self.end_bias_n.get_mut(s)) {
-            *slot = Some(self.observed_bias_n + self.integral_n);
-        }
-        if let Some(common) = self.shared_load_n() {
-            self.observed_bias_n = common;
-            self.integral_n = 0.0;
-            self.thrust_bias_n = common;
-        }
-        self.last_sense = Some(usize::from(target_nm < self.position_nm()));
-    }
-
-    /// The load a move knows is real (N along +x): what the last moves each way share (the mean
-    /// of their end estimates, [`Self::start_load_estimate`]), else the told one. Braking counts
-    /// on it, not on the rest of the estimate.
-    pub(super) fn known_load_n(&self) -> f32 {
-        self.shared_load_n().unwrap_or(self.cfg.expected_load_n)
-    }
-
-    /// The mean of the end estimates of the last move each way (N along +x), once both exist.
-    fn shared_load_n(&self) -> Option<f32> {
-        match self.end_bias_n {
-            [Some(plus), Some(minus)] => Some(0.5 * (plus + minus)),
-            _ => None,
-        }
-    }
-
     pub fn move_relative(&mut self, delta_nm: i64) -> Result<(), CommandError> {
-        self.move_to(self.profile.target_nm().saturating_add(delta_nm))
+        self.move_to(self.motion.profile().target_nm().saturating_add(delta_nm))
     }
 
     /// Smooth stop: decelerate along the profile and hold where it ends. Referencing and
@@ -175,7 +128,7 @@ impl Controller {
             let a = self.model_brake_nm_s2();
             self.brake_to_a_stop(a);
             if a > 0.0 {
-                self.decel_nm_s2 = a;
+                self.motion.set_decel_nm_s2(a);
             }
             return;
         }
@@ -190,10 +143,10 @@ impl Controller {
     /// is. A rate of 0 put the stopping point kilometres away, and the slider ran on to the end
     /// of travel.
     fn brake_to_a_stop(&mut self, rate_nm_s2: f32) {
-        let a = if rate_nm_s2 > 0.0 { rate_nm_s2 } else { self.decel_nm_s2 };
+        let a = if rate_nm_s2 > 0.0 { rate_nm_s2 } else { self.motion.decel_nm_s2() };
         if a > 0.0 {
-            let p = self.profile.stopping_point_nm(a);
-            self.profile.set_target(p);
+            let p = self.motion.profile().stopping_point_nm(a);
+            self.motion.profile_mut().set_target(p);
         } else {
             self.hold_here_or_quiet();
         }
@@ -236,7 +189,7 @@ impl Controller {
         };
         self.mode = Mode::Coarse;
         self.activity = Activity::OpenLoop(run);
-        self.limit_stopped = false;
+        self.supervisor.start_run();
         Ok(())
     }
 
@@ -245,17 +198,15 @@ impl Controller {
             self.activity = Activity::Idle;
             self.servo = false;
             let here = self.position_nm();
-            self.profile.reset(here);
+            self.motion.profile_mut().reset(here);
         }
     }
 
     /// Declares the present position to be `position_nm` (referencing on a mark).
     pub fn set_reference_here(&mut self, position_nm: i64) {
-        if let Some(e) = self.encoder.as_mut() {
-            e.set_position_nm(position_nm);
-        }
+        self.feedback.set_position_nm(position_nm);
         let here = self.position_nm();
-        self.profile.reset(here);
+        self.motion.profile_mut().reset(here);
         self.referenced = true;
     }
 

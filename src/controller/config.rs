@@ -1,6 +1,10 @@
 //! The controller's settings: what the board, the motor table and the user set. Each setting's
 //! id, unit, range, default and storage are declared once, in [`crate::settings::SETTINGS`].
 
+use super::fine::FineModeConfig;
+use super::load_observer::LoadObserverConfig;
+use super::plain_pi::PlainPiConfig;
+use super::supervisor::SupervisorConfig;
 use super::{CommandError, ReferenceSignal};
 use crate::fastmath::fx_from_f32;
 use crate::generator::DacConfig;
@@ -120,6 +124,44 @@ impl ControllerConfig {
             foot_speed_mm_s_per_v: scale(p.foot_speed_mm_s_per_v, tangential),
             mu: fx_from_f32(self.mu_dynamic),
             viscous_un_per_mm_s: p.viscous_un_per_mm_s,
+        }
+    }
+
+    /// The load observer's settings.
+    pub(super) fn load_observer(&self) -> LoadObserverConfig {
+        LoadObserverConfig {
+            expected_load_n: self.expected_load_n,
+            ki_n_per_nm_s: self.ki_n_per_nm_s,
+            feedforward: self.feedforward,
+        }
+    }
+
+    /// Plain feedback's gains and bound (feedforward off).
+    pub(super) fn plain_pi(&self) -> PlainPiConfig {
+        PlainPiConfig {
+            kp_v_per_nm: self.fb_kp_v_per_nm,
+            ki_v_per_nm_s: self.fb_ki_v_per_nm_s,
+            max_v: self.max_drive_v,
+        }
+    }
+
+    /// The supervisor's limits.
+    pub(super) fn supervisor(&self) -> SupervisorConfig {
+        SupervisorConfig {
+            following_error_limit_nm: self.following_error_limit_nm,
+            stall_time_s: self.stall_time_s,
+            encoder_jump_counts: self.encoder_jump_counts,
+            max_drive_v: self.max_drive_v,
+        }
+    }
+
+    /// The fine mode's stroke (the largest common static offset that keeps both stacks in the
+    /// DAC's range) and window.
+    pub(super) fn fine_mode(&self) -> FineModeConfig {
+        let d = &self.dac;
+        FineModeConfig {
+            room_v: (d.mid_v() - d.min_v).min(d.max_v - d.mid_v()),
+            window_nm: self.fine_window_nm,
         }
     }
 

@@ -8,35 +8,11 @@
 //! one before it builds ([`ModelRequest::chosen`]) off the tick.
 
 use super::frequency_choice::FrequencyChoice;
+use super::frequency_policy::FrequencyPolicy;
 use super::model_cache::{with_guide_friction, ModelRequest, ModelTable};
 use super::{Controller, State};
 use crate::fastmath::fx_from_f32;
 use crate::inertia::Orbits;
-
-/// A chosen frequency is kept while the load along the move stays within this share of the
-/// stall force of the load it was chosen for (a new choice costs a dozen model evaluations off
-/// the tick, and an observer learning an unknown load should not ask for one every few ms).
-const RECHOOSE_LOAD_SHARE: f32 = 0.2;
-
-/// How long a frequency the model switched to during a move is on trial (s) ...
-const TRIAL_S: f32 = 0.03;
-/// ... and how much further behind the reference (a share of the profile's waiting lag) the
-/// slider may fall meanwhile, its speed down by over [`TRIAL_SPEED_LOSS_SHARE`], before the
-/// switch is undone for the rest of the move.
-const TRIAL_LAG_SHARE: f32 = 0.5;
-const TRIAL_SPEED_LOSS_SHARE: f32 = 0.1;
-
-/// A drive frequency switched to during a move, on trial: where the model's ranking and the
-/// motor disagree (near the stall force, at low preload), the slider shows it within tens of ms.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct FrequencyTrial {
-    /// The frequency left (Hz).
-    from_hz: f32,
-    /// The slider's speed along the move (nm/s) and its lag behind the reference (nm) then.
-    speed_nm_s: f32,
-    lag_nm: f32,
-    age_s: f32,
-}
 
 impl ModelRequest {
     /// This request at the candidate frequency where the model gives the highest speed at full
@@ -80,68 +56,37 @@ impl Controller {
     /// The load the frequency is chosen for (N, opposing): along the move while moving, either way
     /// otherwise.
     pub(super) fn choice_load_n(&self) -> f32 {
-        if self.state() == State::Moving {
-            // The move's sense, not the side of the target the slider is on: an overshoot at
-            // the end of a move must not flip the choice.
-            (self.move_sense() * self.thrust_bias_n).max(0.0)
-        } else {
-            self.thrust_bias_n.abs()
-        }
-    }
-
-    /// The sense of the last move commanded (+1 or −1 along x).
-    fn move_sense(&self) -> f32 {
-        if self.last_sense == Some(1) {
-            -1.0
-        } else {
-            1.0
-        }
+        let moving = self.state() == State::Moving;
+        FrequencyPolicy::choice_load_n(moving, self.load.move_sense(), self.load.estimate_n())
     }
 
     /// The slider's speed along the move (nm/s) and its lag behind the reference (nm).
     fn along_the_move(&self) -> (f32, f32) {
-        let sense = self.move_sense();
-        let lag = (self.profile.position_nm() - self.position_nm()) as f32 * sense;
-        (sense * self.speed_nm_s, lag)
+        let sense = self.load.move_sense();
+        let lag = (self.motion.profile().position_nm() - self.position_nm()) as f32 * sense;
+        (sense * self.feedback.speed_nm_s(), lag)
     }
 
-    /// A table at `new_hz` is going in (from `old_hz`): during a move, unless it undoes a
-    /// failed switch, the new frequency goes on trial.
+    /// A table at `new_hz` is going in (from `old_hz`): during a move it may go on trial.
     pub(super) fn frequency_switched(&mut self, old_hz: f32, new_hz: f32) {
-        if self.state() != State::Moving || old_hz == new_hz || self.pinned_frequency_hz.is_some() {
-            return;
-        }
+        let moving = self.state() == State::Moving;
         let (speed_nm_s, lag_nm) = self.along_the_move();
-        self.frequency_trial = Some(FrequencyTrial { from_hz: old_hz, speed_nm_s, lag_nm, age_s: 0.0 });
+        self.frequency.switched(moving, old_hz, new_hz, speed_nm_s, lag_nm);
     }
 
-    /// Judges a frequency on trial (every period of a move): the slider fell behind and lost
-    /// speed at it, so the move goes back to the frequency it left and keeps it to its end.
-    /// (At 10 N a 50 kg carriage against an unknown 2.48 N went from 2.2 to 1.2 kHz when its
-    /// observer read 3.6 N; there the plant slows down and the move stalled.)
+    /// Judges a frequency on trial once it has run its time (every period of a move).
     pub(super) fn judge_frequency_trial(&mut self) {
-        let Some(mut trial) = self.frequency_trial else { return };
-        trial.age_s += self.dt_s;
-        if trial.age_s < TRIAL_S {
-            self.frequency_trial = Some(trial);
-            return;
-        }
-        self.frequency_trial = None;
+        let Some(trial) = self.frequency.matured_trial(self.dt_s) else { return };
         let (speed, lag) = self.along_the_move();
-        let behind = lag - trial.lag_nm > TRIAL_LAG_SHARE * self.cfg.profile_wait_lag_nm;
-        let slower = speed < (1.0 - TRIAL_SPEED_LOSS_SHARE) * trial.speed_nm_s;
-        if self.state() == State::Moving && behind && slower {
-            self.pinned_frequency_hz = Some(trial.from_hz);
-        }
+        let moving = self.state() == State::Moving;
+        self.frequency.judge(&trial, moving, speed, lag);
     }
 
-    /// Whether table `t` keeps its frequency for `load_n`: always between moves; while moving,
-    /// until the load along the move has moved by [`RECHOOSE_LOAD_SHARE`] of the stall force (the
-    /// observer learned an unknown load, or the move goes with the load). A table built during a
-    /// move takes over within it: the generator changes frequency without a phase jump.
+    /// Whether table `t` keeps its frequency for `load_n` ([`FrequencyPolicy::keeps`]). A table
+    /// built during a move takes over within it: the generator changes frequency without a phase
+    /// jump.
     pub(super) fn keeps_frequency(&self, t: &ModelTable, load_n: f32) -> bool {
-        self.state() != State::Moving
-            || self.pinned_frequency_hz.is_some()
-            || (load_n - t.request().choice.load_n).abs() <= RECHOOSE_LOAD_SHARE * t.stall_n()
+        let moving = self.state() == State::Moving;
+        self.frequency.keeps(moving, t.request().choice.load_n, t.stall_n(), load_n)
     }
 }

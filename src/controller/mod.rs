@@ -9,28 +9,43 @@
 //! fault; only [`Controller::clear_fault`] leaves it.
 
 use crate::generator::QuadratureGenerator;
-use crate::profile::Profile;
-use crate::sensors::{Encoder, PreloadCell};
 
-// One module per job; each adds its methods to `Controller`. `step` below is where to start.
+// The parts own their state, each with its settings and its own tests: `feedback` (sensors),
+// `motion` (the profile), `load_observer`, `plain_pi`, `fine` (`FineMode`), `mass`,
+// `frequency_policy`, `supervisor`. The other modules are `Controller`'s jobs, which run the
+// parts and write the generator: `supervision` (sense, supervise), `closed_loop`, `coarse`, `fine`,
+// `referencing`, `open_loop`, `commands`, `frequency` and `model_cache` (the model table).
+// `step` below is where to start.
 mod closed_loop;
 mod coarse;
 mod commands;
 mod config;
+mod feedback;
 mod fine;
 mod frequency;
 mod frequency_choice;
+mod frequency_policy;
+mod load_observer;
 mod mass;
 pub mod model_cache;
+mod motion;
 mod open_loop;
+mod plain_pi;
 mod referencing;
 mod supervision;
+mod supervisor;
 pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
-use fine::FineStep;
-use mass::SpeedUp;
+use feedback::Feedback;
+use fine::{FineMode, FineStep};
+use frequency_policy::FrequencyPolicy;
+use load_observer::LoadObserver;
+use mass::MassEstimator;
 use model_cache::ModelSlot;
+use motion::Motion;
 use open_loop::OpenLoopRun;
+use plain_pi::PlainPi;
 use referencing::ReferenceSearch;
+use supervisor::Supervisor;
 
 /// DAC samples produced per control period (DAC rate / loop rate).
 pub const DAC_SAMPLES_PER_STEP: usize = 20;
@@ -201,64 +216,37 @@ impl Activity {
 #[derive(Clone)]
 pub struct Controller {
     cfg: ControllerConfig,
+    /// The control period (s): one over the loop rate.
+    dt_s: f32,
+    /// The thrust model's table and what it asks for ([`model_cache`]).
     model: ModelSlot,
     generator: QuadratureGenerator,
-    encoder: Option<Encoder>,
-    preload: PreloadCell,
-    profile: Profile,
-    /// What the controller is doing, with that activity's own data.
+    /// What the controller is doing, with that activity's own data; how the closed loop drives;
+    /// the servo and referencing flags.
     activity: Activity,
     mode: Mode,
     servo: bool,
     referenced: bool,
-    dt_s: f32,
-    thrust_bias_n: f32,
-    /// Thrust-model branch: load correction integrated from position error (N).
-    integral_n: f32,
-    /// Plain-feedback branch: integral term (V, signed along +x).
-    integral_v: f32,
-    fine_offset_v: f32,
-    speed_nm_s: f32,
-    on_target_s: f32,
-    stall_s: f32,
+    /// The drive voltage last commanded (V peak-to-peak): the inverse model's next hint, and
+    /// what the supervisor and the load observer call near full drive.
     drive_v: f32,
-    max_following_error_nm: f32,
-    accel_ref_nm_s2: f32,
-    /// A frequency the model switched to during this move, on trial ([`frequency`]) ...
-    frequency_trial: Option<frequency::FrequencyTrial>,
-    /// ... and the one the move went back to when the trial failed, kept to the move's end.
-    pinned_frequency_hz: Option<f32>,
-    /// Fine-mode corrections in a row the encoder missed (carried across fine-mode entries: a
-    /// frozen encoder sends the fine mode out of stroke and back through the coarse mode).
-    fine_misses: u32,
-    /// Load observer: thrust along +x the model says the motor gives, less M·a (N).
-    observed_bias_n: f32,
-    /// The load estimate (observer plus integral, N along +x) at the end of the last move each
-    /// way (+, −), and the sense of the last move.
-    end_bias_n: [Option<f32>; 2],
-    last_sense: Option<usize>,
-    prev_speed_nm_s: f32,
-    decel_nm_s2: f32,
-    /// The moving mass in use (kg): the parameter, a payload a speed-up measured, or the mass
-    /// learned from long speed-ups ([`mass`]).
-    mass_kg: f32,
-    /// What long speed-ups taught beyond the told mass (kg, [`mass`]) ...
-    learned_mass_kg: f32,
-    /// ... at this preload (N).
-    mass_preload_n: f32,
-    /// The move's speed-up while it is being timed.
-    speedup: Option<SpeedUp>,
-    reference_failures: u32,
-    /// Moves and open-loop runs a limit switch stopped (wraps), and whether the move or run in
-    /// progress has been stopped by one already (counted once; cleared when one starts).
-    limit_stops: u32,
-    limit_stopped: bool,
-    faults: u32,
-    /// Control periods since start (wraps): the speed-up limit (a model evaluation) is
-    /// refreshed on odd periods only; the profile's acceleration changes little in 100 µs.
-    tick: u32,
-    /// The speed-up limit from the last odd period (nm/s²).
-    speedup_nm_s2: core::cell::Cell<f32>,
+    // The parts, each with its own state (and settings, cut from `cfg` in `config.rs`):
+    /// Encoder, speed and preload readings ([`feedback`]).
+    feedback: Feedback,
+    /// The profile, its acceleration and braking rate, the time on target ([`motion`]).
+    motion: Motion,
+    /// The load estimate the feedforward pushes against ([`load_observer`]).
+    load: LoadObserver,
+    /// The coarse mode's feedback without the model ([`plain_pi`]).
+    pi: PlainPi,
+    /// The static offset and the encoder-loss count of the fine mode ([`fine`]).
+    fine: FineMode,
+    /// The moving mass: told, measured or learned ([`mass`]).
+    mass: MassEstimator,
+    /// When the drive frequency may change ([`frequency_policy`]).
+    frequency: FrequencyPolicy,
+    /// Following error and stall judgement, and the counts the protocol watches ([`supervisor`]).
+    supervisor: Supervisor,
 }
 
 impl Controller {
@@ -272,43 +260,21 @@ impl Controller {
         generator.set_frequency_hz(cfg.drive_freq_hz);
         Ok(Controller {
             generator,
-            encoder: None,
-            preload: PreloadCell::new(cfg.preload),
-            profile: Profile::at_rest(0),
+            feedback: Feedback::new(cfg.encoder_nm_per_count, cfg.preload),
+            motion: Motion::new(),
             activity: Activity::Idle,
             mode: Mode::Coarse,
             servo: false,
             referenced: false,
             dt_s: 1.0 / cfg.loop_hz as f32,
-            thrust_bias_n: cfg.expected_load_n,
-            integral_n: 0.0,
-            integral_v: 0.0,
-            fine_offset_v: 0.0,
-            speed_nm_s: 0.0,
-            on_target_s: 0.0,
-            stall_s: 0.0,
+            load: LoadObserver::new(cfg.load_observer()),
+            pi: PlainPi::new(cfg.plain_pi()),
+            fine: FineMode::new(cfg.fine_mode()),
             drive_v: 0.0,
-            max_following_error_nm: 0.0,
-            accel_ref_nm_s2: 0.0,
-            frequency_trial: None,
-            pinned_frequency_hz: None,
-            fine_misses: 0,
-            observed_bias_n: cfg.expected_load_n,
-            end_bias_n: [None; 2],
-            last_sense: None,
+            frequency: FrequencyPolicy::new(cfg.profile_wait_lag_nm),
             model: ModelSlot::new(&cfg, 0),
-            prev_speed_nm_s: 0.0,
-            decel_nm_s2: 1.0,
-            mass_kg: cfg.moving_mass_kg,
-            learned_mass_kg: cfg.moving_mass_kg,
-            mass_preload_n: 0.0,
-            speedup: None,
-            reference_failures: 0,
-            limit_stops: 0,
-            limit_stopped: false,
-            faults: 0,
-            tick: 0,
-            speedup_nm_s2: core::cell::Cell::new(0.0),
+            mass: MassEstimator::new(cfg.moving_mass_kg),
+            supervisor: Supervisor::new(cfg.supervisor()),
             cfg,
         })
     }
@@ -322,19 +288,19 @@ impl Controller {
     }
 
     pub fn position_nm(&self) -> i64 {
-        self.encoder.map_or(0, |e| e.position_nm())
+        self.feedback.position_nm()
     }
 
     pub fn target_nm(&self) -> i64 {
-        self.profile.target_nm()
+        self.motion.profile().target_nm()
     }
 
     pub fn reference_nm(&self) -> i64 {
-        self.profile.position_nm()
+        self.motion.profile().position_nm()
     }
 
     pub fn preload_n(&self) -> Option<f32> {
-        self.preload.valid().then(|| self.preload.force_n())
+        self.feedback.preload_n()
     }
 
     pub fn servo(&self) -> bool {
@@ -355,7 +321,7 @@ impl Controller {
 
     /// Common static offset of the fine mode (V).
     pub fn fine_offset_v(&self) -> f32 {
-        self.fine_offset_v
+        self.fine.offset_v()
     }
 
     pub fn fine_mode(&self) -> bool {
@@ -363,18 +329,18 @@ impl Controller {
     }
 
     pub fn speed_nm_s(&self) -> f32 {
-        self.speed_nm_s
+        self.feedback.speed_nm_s()
     }
 
     /// The load estimate the feedforward pushes against (N along +x): the observer's, plus the
     /// integral's correction while moving.
     pub fn load_estimate_n(&self) -> f32 {
-        self.thrust_bias_n
+        self.load.estimate_n()
     }
 
     /// Largest |reference − position| since the last move command.
     pub fn max_following_error_nm(&self) -> f32 {
-        self.max_following_error_nm
+        self.supervisor.max_following_error_nm()
     }
 
     /// Referencing in progress (PI's "controller busy").
@@ -392,40 +358,32 @@ impl Controller {
 
     /// Faults since power-up (wraps): a change tells the protocol a fault happened.
     pub fn fault_count(&self) -> u32 {
-        self.faults
+        self.supervisor.faults()
     }
 
     /// Referencing searches that ended without finding the mark (wraps).
     pub fn reference_failure_count(&self) -> u32 {
-        self.reference_failures
+        self.supervisor.reference_failures()
     }
 
     /// Closed-loop moves and open-loop runs that a limit switch stopped (wraps): a change tells
     /// the protocol one did.
     pub fn limit_stop_count(&self) -> u32 {
-        self.limit_stops
-    }
-
-    /// Counts a limit switch's stop (once per move).
-    fn note_limit_stop(&mut self) {
-        if !self.limit_stopped {
-            self.limit_stopped = true;
-            self.limit_stops = self.limit_stops.wrapping_add(1);
-        }
+        self.supervisor.limit_stops()
     }
 
     /// Motion in progress: a closed-loop move, referencing or open-loop stepping.
     pub fn in_motion(&self) -> bool {
         match self.state() {
             State::Referencing | State::OpenLoop => true,
-            State::Moving | State::Holding => !self.profile.done(),
+            State::Moving | State::Holding => !self.motion.profile().done(),
             State::Idle | State::Fault(_) => false,
         }
     }
 
     /// As PI's ONT?: holding within the window for the settle time.
     pub fn on_target(&self) -> bool {
-        self.state() == State::Holding && self.on_target_s >= self.cfg.settle_time_s
+        self.state() == State::Holding && self.motion.on_target_s() >= self.cfg.settle_time_s
     }
 
     fn check_preload(&self) -> Result<f32, CommandError> {
@@ -438,13 +396,13 @@ impl Controller {
 
     fn enter_hold(&mut self) {
         self.activity = Activity::Holding;
-        self.on_target_s = 0.0;
+        self.motion.restart_on_target();
     }
 
     /// The reference where the slider is, then holding there with the servo on, else quiet.
     fn hold_here_or_quiet(&mut self) {
         let here = self.position_nm();
-        self.profile.reset(here);
+        self.motion.profile_mut().reset(here);
         if self.servo {
             self.enter_hold();
         } else {
@@ -455,17 +413,17 @@ impl Controller {
 
     /// One control period.
     pub fn step(&mut self, inputs: &Inputs) -> Outputs {
-        self.tick = self.tick.wrapping_add(1);
+        self.motion.tick();
         self.sense(inputs);
         self.supervise();
         // A limit switch in the direction of a closed-loop move stops it where it is.
         if self.state() == State::Moving {
-            let v = self.profile.velocity_nm_s();
-            let toward = self.profile.target_nm() - self.position_nm();
+            let v = self.motion.profile().velocity_nm_s();
+            let toward = self.motion.profile().target_nm() - self.position_nm();
             if (inputs.negative_limit && (v < 0.0 || toward < 0))
                 || (inputs.positive_limit && (v > 0.0 || toward > 0))
             {
-                self.note_limit_stop();
+                self.supervisor.note_limit_stop();
                 self.stop();
             }
         }

@@ -227,6 +227,47 @@ fn thrust_at_zero_speed(row: &[f32; PHASE_POINTS]) -> f32 {
     row.get((PHASE_POINTS - 1) / 2).copied().unwrap_or(0.0)
 }
 
+/// The thrust grid (N) at the request's preload, net of the guide's friction, from the carriage's
+/// periodic motion where it rides the foot; and the largest thrust in it.
+fn thrust_grid(request: &ModelRequest, riding: bool) -> ([[f32; PHASE_POINTS]; VOLT_POINTS], f32) {
+    let top = request.max_drive_v.max(0.0);
+    let preload = fx_from_f32(request.preload_n);
+    let step_v = top / (VOLT_POINTS - 1) as f32;
+    let mut thrust_n = [[0.0f32; PHASE_POINTS]; VOLT_POINTS];
+    let mut largest = 0.0f32;
+    for (j, row) in thrust_n.iter_mut().enumerate() {
+        let volts = if j == 0 { ROW0_SHARE * step_v } else { step_v * j as f32 };
+        let point = request.per_volt.point(preload, fx_from_f32(volts));
+        for (k, t) in row.iter_mut().enumerate() {
+            let phi = Fx::PI * k as i32 / (PHASE_POINTS - 1) as i32;
+            *t = point.thrust_n(point.foot_speed_mm_s.saturating_mul(cos(phi))).to_num();
+        }
+        if riding {
+            let orbits = Orbits::new(&point, request.frequency_hz, request.moving_mass_kg);
+            if orbits.inertia_matters() {
+                with_inertia(row, &orbits, point.foot_speed_mm_s.to_num());
+            }
+        }
+        less_guide_friction(row, request, point.foot_speed_mm_s.to_num());
+        largest = row.iter().fold(largest, |a, &t| a.max(t.abs()));
+    }
+    (thrust_n, largest)
+}
+
+/// The speed table: forward speed at full drive against each of [`LOAD_POINTS`] loads from 0 to
+/// `stall_n`, net of the guide's friction; `speed(foot_load, hint)` gives the foot's speed against
+/// a load at the foot, `hint` the last load's answer (NaN at first).
+fn speed_table(request: &ModelRequest, stall_n: f32, speed: impl Fn(f32, f32) -> f32) -> [f32; LOAD_POINTS] {
+    let mut speed_mm_s = [0.0f32; LOAD_POINTS];
+    let mut hint = f32::NAN;
+    for (k, s) in speed_mm_s.iter_mut().enumerate() {
+        let load = stall_n * k as f32 / (LOAD_POINTS - 1) as f32;
+        *s = with_guide_friction(request, load, |foot_load| speed(foot_load, hint));
+        hint = *s;
+    }
+    speed_mm_s
+}
+
 impl ModelTable {
     /// The expensive part: the frequency chosen first when the request offers several
     /// ([`ModelRequest::chosen`]), then [`VOLT_POINTS`] model points, the thrust at every grid
@@ -238,7 +279,6 @@ impl ModelTable {
         let request = &request.chosen();
         let top = request.max_drive_v.max(0.0);
         let preload = fx_from_f32(request.preload_n);
-        let step_v = top / (VOLT_POINTS - 1) as f32;
         // A light carriage: its full-drive speed from its periodic motion, and where that is far
         // below the constant-speed model's, the whole grid from it too (see `RIDING_SHARE`).
         let full = request.per_volt.point(preload, fx_from_f32(top));
@@ -247,24 +287,7 @@ impl ModelTable {
         let constant_v0: f32 = full.no_load_speed_mm_s().to_num();
         let riding =
             light && full_orbits.mean_speed_mm_s(0.0).is_some_and(|v0| v0 < RIDING_SHARE * constant_v0);
-        let mut thrust_n = [[0.0f32; PHASE_POINTS]; VOLT_POINTS];
-        let mut largest = 0.0f32;
-        for (j, row) in thrust_n.iter_mut().enumerate() {
-            let volts = if j == 0 { ROW0_SHARE * step_v } else { step_v * j as f32 };
-            let point = request.per_volt.point(preload, fx_from_f32(volts));
-            for (k, t) in row.iter_mut().enumerate() {
-                let phi = Fx::PI * k as i32 / (PHASE_POINTS - 1) as i32;
-                *t = point.thrust_n(point.foot_speed_mm_s.saturating_mul(cos(phi))).to_num();
-            }
-            if riding {
-                let orbits = Orbits::new(&point, request.frequency_hz, request.moving_mass_kg);
-                if orbits.inertia_matters() {
-                    with_inertia(row, &orbits, point.foot_speed_mm_s.to_num());
-                }
-            }
-            less_guide_friction(row, request, point.foot_speed_mm_s.to_num());
-            largest = row.iter().fold(largest, |a, &t| a.max(t.abs()));
-        }
+        let (thrust_n, largest) = thrust_grid(request, riding);
         let thrust_scale_n = if largest > 0.0 { largest / 32_767.0 } else { 1.0 };
         let thrust_q = thrust_n.map(|row| {
             row.map(|t| {
@@ -272,30 +295,26 @@ impl ModelTable {
                 (if q >= 0.0 { q + 0.5 } else { q - 0.5 }) as i16
             })
         });
-        let mut speed_mm_s = [0.0f32; LOAD_POINTS];
-        let stall_n: f32;
-        if light {
+        let (stall_n, speed_mm_s) = if light {
             // The stall (the full-drive row's thrust at zero speed: the carriage's when the grid
             // is the carriage's), then the periodic motion at each load of the speed table.
             let top_row = thrust_n.last().copied().unwrap_or([0.0; PHASE_POINTS]);
-            stall_n = thrust_at_zero_speed(&top_row).max(0.0);
-            for (k, s) in speed_mm_s.iter_mut().enumerate() {
-                let load = stall_n * k as f32 / (LOAD_POINTS - 1) as f32;
-                *s = with_guide_friction(request, load, |foot_load| {
+            let stall_n = thrust_at_zero_speed(&top_row).max(0.0);
+            (
+                stall_n,
+                speed_table(request, stall_n, |foot_load, _| {
                     full_orbits.mean_speed_mm_s(foot_load).unwrap_or(0.0).max(0.0)
-                });
-            }
+                }),
+            )
         } else {
-            stall_n = (full.stall_force_n().to_num::<f32>() - request.rail_coulomb_n).max(0.0);
-            let mut hint = f32::NAN;
-            for (k, s) in speed_mm_s.iter_mut().enumerate() {
-                let load = stall_n * k as f32 / (LOAD_POINTS - 1) as f32;
-                *s = with_guide_friction(request, load, |foot_load| {
+            let stall_n = (full.stall_force_n().to_num::<f32>() - request.rail_coulomb_n).max(0.0);
+            (
+                stall_n,
+                speed_table(request, stall_n, |foot_load, hint| {
                     full.speed_at_load_near(fx_from_f32(foot_load), hint).to_num()
-                });
-                hint = *s;
-            }
-        }
+                }),
+            )
+        };
         ModelTable {
             request: *request,
             thrust_q,
@@ -530,7 +549,7 @@ impl Controller {
         let load_n = self.choice_load_n();
         let kept = self.model.table.as_ref().filter(|t| self.keeps_frequency(t, load_n));
         let pinned =
-            self.pinned_frequency_hz.filter(|&f| kept.is_some_and(|t| t.request().frequency_hz != f));
+            self.frequency.pinned_hz().filter(|&f| kept.is_some_and(|t| t.request().frequency_hz != f));
         let choice = match (kept, pinned) {
             // Back to the frequency a failed trial left ([`super::frequency`]).
             (_, Some(f)) => FrequencyChoice::fixed(f, self.cfg.per_volt_at(f), load_n),

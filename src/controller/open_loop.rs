@@ -16,11 +16,11 @@ impl Controller {
     pub(super) fn open_loop(&mut self, inputs: &Inputs) {
         let Activity::OpenLoop(mut run) = self.activity else { return };
         let here = self.position_nm();
-        self.profile.reset(here);
+        self.motion.profile_mut().reset(here);
         let blocked =
             (run.direction < 0 && inputs.negative_limit) || (run.direction > 0 && inputs.positive_limit);
         if blocked {
-            self.note_limit_stop();
+            self.supervisor.note_limit_stop();
         }
         if run.periods == 0 || blocked {
             return self.end_open_loop_motion();

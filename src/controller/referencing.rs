@@ -24,7 +24,7 @@ impl Controller {
         let Activity::Referencing(mut search) = self.activity else { return };
         let here = self.position_nm();
         // No profile to follow while searching: keep the reference on the slider.
-        self.profile.reset(here);
+        self.motion.profile_mut().reset(here);
         let found = match self.cfg.reference_signal {
             ReferenceSignal::Index if search.on_limit => inputs.negative_limit,
             ReferenceSignal::Index => inputs.index,
@@ -33,7 +33,7 @@ impl Controller {
         if found {
             let mut at = self.cfg.reference_position_nm;
             if let (ReferenceSignal::Index, false, Some(raw), Some(e)) =
-                (self.cfg.reference_signal, search.on_limit, inputs.index_raw, self.encoder)
+                (self.cfg.reference_signal, search.on_limit, inputs.index_raw, self.feedback.encoder())
             {
                 // Counts moved since the latched edge (well within ±2¹⁵ in one period).
                 let since = i64::from(inputs.encoder_raw.wrapping_sub(raw) as i16);
@@ -65,7 +65,7 @@ impl Controller {
     }
 
     pub(super) fn reference_failed(&mut self) {
-        self.reference_failures = self.reference_failures.wrapping_add(1);
+        self.supervisor.note_reference_failure();
         self.referenced = false;
         self.end_open_loop_motion();
     }
