@@ -1224,8 +1224,8 @@ fn a_limit_switch_stopping_a_move_latches_error_7() {
 }
 
 /// Issue 30 item 2: what each command runs with the controller locked (the board's tick held
-/// off), by its kind: a query only a snapshot (`XTM?` a copy of the controller, its thrust limits
-/// may evaluate the model), a settings command a snapshot and then `set_config` (only when the
+/// off), by its kind: a query only a snapshot (`XTM?`'s holds what its thrust limits read, they
+/// are evaluated off the lock), a settings command a snapshot and then `apply_config` (only when the
 /// settings change), any other command the command itself. A command that changes kind, or a
 /// runner that locks more often, fails here; `host-sim pil --gcs-locks` counts the instructions.
 #[test]
@@ -1259,12 +1259,10 @@ fn each_command_locks_the_controller_as_its_kind_says() {
                 (Pending::Line(line), text)
             }
         };
-        let expect: &[&str] = if c.name == "XTM?" {
-            &["controller copy"]
-        } else if c.name.ends_with('?') || c.name == "#5" || c.name == "#7" {
+        let expect: &[&str] = if c.name.ends_with('?') || c.name == "#5" || c.name == "#7" {
             &["snapshot"]
         } else if settings.contains(&c.name) {
-            &["snapshot", "set_config"]
+            &["snapshot", "apply_config"]
         } else {
             &["command"]
         };
@@ -1278,7 +1276,7 @@ fn each_command_locks_the_controller_as_its_kind_says() {
             assert_eq!(rig.gcs.latched_error(), 0, "{text}");
         }
     }
-    // A settings command that changes nothing, or is refused, locks once (no set_config).
+    // A settings command that changes nothing, or is refused, locks once (no apply_config).
     for text in [&b"VEL 1 10"[..], b"SPA 1 0xA -5"] {
         let mut line = heapless::Vec::new();
         line.extend_from_slice(text).unwrap();

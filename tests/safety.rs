@@ -3,7 +3,9 @@
 mod common;
 
 use common::TestBoard;
-use piezo_drive::controller::{Controller, FaultCode, Inputs, State};
+use piezo_drive::controller::{
+    CommandError, ConfigChange, Controller, ControllerConfig, FaultCode, Inputs, State,
+};
 use piezo_drive::defaults;
 use piezo_drive::fastmath::{clamp_f32, clamp_i32, clamp_sym_f32};
 use piezo_drive::gcs::{error, Gcs, Pending, Reply, COMMANDS};
@@ -585,6 +587,31 @@ fn fx_from_f32_matches_fixed_without_its_nan_panic() {
         }
     }
     assert_eq!(fx_from_f32(f32::NAN), Fx::ZERO);
+}
+
+/// A settings change is prepared off the lock from a snapshot of the settings: if another change
+/// was applied meanwhile, applying the stale one would undo it, so it is refused whole.
+#[test]
+fn a_settings_change_prepared_from_older_settings_is_refused() {
+    let cfg = defaults::controller_config();
+    let mut ctl = Controller::new(cfg).unwrap();
+    let before = ctl.config_generation();
+    let slower = ControllerConfig { velocity_max_nm_s: cfg.velocity_max_nm_s * 0.5, ..cfg };
+    let stale = ConfigChange::prepare(ctl.config(), before, slower).unwrap();
+    let faster = ControllerConfig { velocity_max_nm_s: cfg.velocity_max_nm_s * 0.9, ..cfg };
+    ctl.set_config(faster).unwrap();
+    assert_ne!(ctl.config_generation(), before);
+    assert_eq!(ctl.apply_config(&stale), Err(CommandError::Busy));
+    assert_eq!(*ctl.config(), faster);
+    // Prepared from the current settings it applies.
+    let fresh = ConfigChange::prepare(ctl.config(), ctl.config_generation(), slower).unwrap();
+    assert_eq!(ctl.apply_config(&fresh), Ok(()));
+    assert_eq!(*ctl.config(), slower);
+    // What the board fixes cannot change; a value out of range is refused before any lock.
+    let other_loop = ControllerConfig { loop_hz: cfg.loop_hz / 2, ..cfg };
+    assert_eq!(ConfigChange::prepare(ctl.config(), 0, other_loop), Err(CommandError::InvalidValue));
+    let negative = ControllerConfig { velocity_max_nm_s: -1.0, ..cfg };
+    assert!(ConfigChange::prepare(ctl.config(), 0, negative).is_err());
 }
 
 #[test]

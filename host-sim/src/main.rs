@@ -336,10 +336,8 @@ fn cmd_pil(params: &Params, args: PilArgs) -> Result<()> {
     if args.gcs_locks {
         return cmd_pil_locks(params, &args);
     }
-    if args.lock_budget.is_some() || args.set_config_budget.is_some() {
-        bail!(
-            "--lock-budget and --set-config-budget go with --gcs-locks (the move's tick budget is --budget)"
-        );
+    if args.lock_budget.is_some() {
+        bail!("--lock-budget goes with --gcs-locks (the move's tick budget is --budget)");
     }
     let options = args.options();
     host_sim::harness::pil::validate(&options)?;
@@ -437,11 +435,8 @@ fn cmd_pil_locks(params: &Params, args: &PilArgs) -> Result<()> {
             );
         }
         println!(
-            "longest locked section: {} instructions ({}); budget {}{}",
-            r.max_lock_instructions,
-            r.max_lock_command,
-            lock_budget,
-            args.set_config_budget.map_or(String::new(), |b| format!(", {b} for set_config"))
+            "longest locked section: {} instructions ({}); budget {}",
+            r.max_lock_instructions, r.max_lock_command, lock_budget
         );
         println!(
             "{} control periods, {} whose outputs differ from the host build",
@@ -456,21 +451,17 @@ fn cmd_pil_locks(params: &Params, args: &PilArgs) -> Result<()> {
     if r.sil_mismatch_ticks > 0 {
         problems.push(format!("{} periods differ between the M4 and the host build", r.sil_mismatch_ticks));
     }
-    let set_config_budget = args.set_config_budget.unwrap_or(lock_budget);
     let over: Vec<String> = r
         .locks
         .iter()
         .flat_map(|l| l.sections.iter().map(move |s| (l, s)))
-        .filter(|(_, s)| {
-            s.instructions > if s.what == "set_config" { set_config_budget } else { lock_budget }
-        })
+        .filter(|(_, s)| s.instructions > lock_budget)
         .map(|(l, s)| format!("{} ({}: {})", l.line, s.what, s.instructions))
         .collect();
     if !over.is_empty() {
         problems.push(format!(
-            "locked sections over the budget of {} instructions ({} for set_config): {}",
+            "locked sections over the budget of {} instructions: {}",
             lock_budget,
-            set_config_budget,
             over.join(", ")
         ));
     }

@@ -4,28 +4,30 @@
 use super::open_loop::OpenLoopRun;
 use super::referencing::ReferenceSearch;
 use super::{validate_settings, Activity, CommandError, Controller, ControllerConfig, Mode, State};
+use crate::model::PerVolt;
 
 impl Controller {
     /// Replaces the settings after checking them. What the hardware fixes (loop and DAC rates,
     /// DAC range, encoder resolution, motor table) cannot change at run time.
     pub fn set_config(&mut self, cfg: ControllerConfig) -> Result<(), CommandError> {
-        let c = &self.cfg;
-        if cfg.loop_hz != c.loop_hz
-            || cfg.dac != c.dac
-            || cfg.encoder_nm_per_count != c.encoder_nm_per_count
-            || cfg.motor != c.motor
-        {
-            return Err(CommandError::InvalidValue);
+        let change = ConfigChange::prepare(&self.cfg, self.model.generation, cfg)?;
+        self.apply_config(&change)
+    }
+
+    /// The settings' generation: bumped by every accepted settings change (a [`ConfigChange`]
+    /// prepared from an older one is refused).
+    pub fn config_generation(&self) -> u32 {
+        self.model.generation
+    }
+
+    /// Takes a settings change prepared off the lock ([`ConfigChange::prepare`]): what is left
+    /// is copying it in. Refused (`Busy`) when the settings changed since it was prepared.
+    pub fn apply_config(&mut self, change: &ConfigChange) -> Result<(), CommandError> {
+        if change.from_generation != self.model.generation {
+            return Err(CommandError::Busy);
         }
-        validate_settings(&cfg)?;
-        // A new motor calibration: what the load observer learned was the old model's error.
-        let c = &self.cfg;
-        let recalibrated = cfg.mu_dynamic != c.mu_dynamic
-            || cfg.tangential_scale != c.tangential_scale
-            || cfg.normal_force_ratio != c.normal_force_ratio
-            || cfg.rail_coulomb_n != c.rail_coulomb_n
-            || cfg.rail_viscous_n_s_per_m != c.rail_viscous_n_s_per_m;
-        self.load.configure(cfg.load_observer(), recalibrated);
+        let cfg = &change.cfg;
+        self.load.configure(cfg.load_observer(), change.recalibrated);
         self.pi.configure(cfg.plain_pi());
         self.supervisor.configure(cfg.supervisor());
         self.fine.configure(cfg.fine_mode());
@@ -33,10 +35,9 @@ impl Controller {
         self.feedback.configure(cfg.preload);
         // What the speed-ups measured stays through a speed or limit change (`VEL`, `ACC`, …),
         // not through a new mass or calibration.
-        let forget = recalibrated || cfg.moving_mass_kg != self.cfg.moving_mass_kg;
-        self.mass.configure(cfg.moving_mass_kg, forget);
-        self.cfg = cfg;
-        self.model.reconfigure(&self.cfg);
+        self.mass.configure(cfg.moving_mass_kg, change.forget_mass);
+        self.cfg = *cfg;
+        self.model.reconfigure_with(change.per_volt, change.fine_nm_per_v);
         Ok(())
     }
 
@@ -228,5 +229,55 @@ impl Controller {
         self.mode = Mode::Coarse;
         self.referenced = false;
         Ok(())
+    }
+}
+
+/// A settings change, checked and with what it derives computed, from the settings it replaces:
+/// all of [`Controller::set_config`]'s work that does not need the controller itself, so that a
+/// board can do it without holding the control tick off ([`Controller::apply_config`] is the
+/// rest).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ConfigChange {
+    cfg: ControllerConfig,
+    per_volt: PerVolt,
+    fine_nm_per_v: f32,
+    /// A new motor calibration: what the load observer learned was the old model's error.
+    recalibrated: bool,
+    /// A new mass or calibration: what the speed-ups measured no longer holds.
+    forget_mass: bool,
+    /// The generation of the settings it replaces.
+    from_generation: u32,
+}
+
+impl ConfigChange {
+    /// `cfg` in place of `current` (of settings generation `generation`): refused if it changes
+    /// what is fixed by the board (loop rate, DAC, encoder, motor table) or fails the range checks.
+    pub fn prepare(
+        current: &ControllerConfig,
+        generation: u32,
+        cfg: ControllerConfig,
+    ) -> Result<Self, CommandError> {
+        let c = current;
+        if cfg.loop_hz != c.loop_hz
+            || cfg.dac != c.dac
+            || cfg.encoder_nm_per_count != c.encoder_nm_per_count
+            || cfg.motor != c.motor
+        {
+            return Err(CommandError::InvalidValue);
+        }
+        validate_settings(&cfg)?;
+        let recalibrated = cfg.mu_dynamic != c.mu_dynamic
+            || cfg.tangential_scale != c.tangential_scale
+            || cfg.normal_force_ratio != c.normal_force_ratio
+            || cfg.rail_coulomb_n != c.rail_coulomb_n
+            || cfg.rail_viscous_n_s_per_m != c.rail_viscous_n_s_per_m;
+        Ok(ConfigChange {
+            per_volt: cfg.per_volt(),
+            fine_nm_per_v: cfg.fine_nm_per_v(),
+            recalibrated,
+            forget_mass: recalibrated || cfg.moving_mass_kg != c.moving_mass_kg,
+            from_generation: generation,
+            cfg,
+        })
     }
 }

@@ -74,6 +74,32 @@ pub struct ModelRequest {
     pub generation: u32,
 }
 
+/// The controller's view of its thrust limits at one instant ([`Controller::thrust_inputs`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ThrustInputs {
+    preload_n: Option<f32>,
+    /// The fitting table's stall force and no-load speed, if a table fits the preload.
+    table: Option<(f32, f32)>,
+    per_volt: PerVolt,
+    max_drive_v: f32,
+    rail_coulomb_n: f32,
+}
+
+impl ThrustInputs {
+    /// Stall force (N) and no-load speed (mm/s) at full drive: the table's, else a model point.
+    pub fn limits(&self) -> Option<(f32, f32)> {
+        let preload = self.preload_n?;
+        if let Some(limits) = self.table {
+            return Some(limits);
+        }
+        let p = self.per_volt.point(fx_from_f32(preload), fx_from_f32(self.max_drive_v));
+        // Net of the guide's Coulomb friction (the table's viscous refinement is left out here).
+        let guide = fx_from_f32(self.rail_coulomb_n);
+        let stall = (p.stall_force_n() - guide).max(Fx::ZERO);
+        Some((stall.to_num(), p.speed_at_load_mm_s(guide).to_num()))
+    }
+}
+
 /// The thrust model at one preload and drive frequency, ready for the tick.
 #[derive(Debug, Clone, Copy)]
 pub struct ModelTable {
@@ -500,9 +526,10 @@ impl ModelSlot {
 
     /// New settings: the table they need is asked for anew, the old one dropped. In place,
     /// because a whole slot moved by value copies the table's kilobytes under the tick lock.
-    pub(super) fn reconfigure(&mut self, cfg: &ControllerConfig) {
-        self.per_volt = cfg.per_volt();
-        self.fine_nm_per_v = cfg.fine_nm_per_v();
+    /// New settings whose amplitudes per volt and fine stroke are these: the table goes.
+    pub(super) fn reconfigure_with(&mut self, per_volt: PerVolt, fine_nm_per_v: f32) {
+        self.per_volt = per_volt;
+        self.fine_nm_per_v = fine_nm_per_v;
         self.generation = self.generation.wrapping_add(1);
         self.table = None;
     }
@@ -512,15 +539,20 @@ impl Controller {
     /// Stall force (N) and no-load speed (mm/s) at full drive and the measured preload: from the
     /// model table when it fits the preload, else computed here (for queries, off the tick).
     pub fn thrust_limits(&self) -> Option<(f32, f32)> {
-        let preload = self.preload_n()?;
-        if let Some(t) = self.fitting_table(preload) {
-            return Some((t.stall_n(), t.no_load_mm_s()));
+        self.thrust_inputs().limits()
+    }
+
+    /// What [`Self::thrust_limits`] reads, copied out (a few words), so that a board can evaluate
+    /// them without holding the tick off: without a fitting table they cost a model point.
+    pub fn thrust_inputs(&self) -> ThrustInputs {
+        let preload_n = self.preload_n();
+        ThrustInputs {
+            preload_n,
+            table: preload_n.and_then(|f| self.fitting_table(f)).map(|t| (t.stall_n(), t.no_load_mm_s())),
+            per_volt: self.model.per_volt,
+            max_drive_v: self.cfg.max_drive_v,
+            rail_coulomb_n: self.cfg.rail_coulomb_n,
         }
-        let p = self.model.per_volt.point(fx_from_f32(preload), fx_from_f32(self.cfg.max_drive_v));
-        // Net of the guide's Coulomb friction (the table's viscous refinement is left out here).
-        let guide = fx_from_f32(self.cfg.rail_coulomb_n);
-        let stall = (p.stall_force_n() - guide).max(Fx::ZERO);
-        Some((stall.to_num(), p.speed_at_load_mm_s(guide).to_num()))
     }
 
     /// The installed table, if it was built for this preload (within [`PRELOAD_RESOLVE_N`]).

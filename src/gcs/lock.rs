@@ -8,18 +8,19 @@
 //! (see [`Gcs::is_read_only`], [`Gcs::is_settings_only`]):
 //! - a query (`…?`, #5, #7, and what only latches an error) takes a [`Snapshot`] under the
 //!   lock (the settings and the state's scalars, not the 3 KiB controller) and is answered from
-//!   it without the lock; `XTM?` copies the controller instead (its thrust limits may evaluate
-//!   the model) and takes its snapshot from the copy;
+//!   it without the lock; `XTM?`'s snapshot also holds what its thrust limits read (they may
+//!   evaluate the model, so they are evaluated from it, off the lock);
 //! - a settings command (`SPA`, `VEL`, `ACC`, `DEC`) takes the same snapshot, is parsed and
-//!   checked on a copy of its settings without the lock, and only `Controller::set_config` runs
-//!   under it again (when the settings changed);
+//!   checked on a copy of its settings and prepared as a `ConfigChange` without the lock, and
+//!   only `Controller::apply_config` (copying it in) runs under it again (when the settings
+//!   changed);
 //! - every other command runs under the lock (its handler: check and act; #24).
 
 use super::commands::{Parsed, Shape};
 use super::framing::Out;
 use super::snapshot::Snapshot;
 use super::{error, Board, Gcs, Pending, Reply};
-use crate::controller::Controller;
+use crate::controller::{ConfigChange, Controller};
 
 /// The controller as a board shares it with its control tick.
 pub trait SharedController {
@@ -51,25 +52,26 @@ impl Gcs {
         let parsed = Parsed::of(pending);
         let thrust = parsed.needs_thrust();
         match parsed.shape() {
-            Shape::Query if thrust => {
-                // `XTM?`: the thrust limits may evaluate the model (when no model table fits the
-                // preload yet, 3 400 instructions on the M4): from a copy of the controller,
-                // evaluated without the lock.
-                let Some(copy) = shared.lock(|ctl| ctl.clone()) else { return };
-                let snap = Snapshot::take(&copy, true);
-                self.run_query(&parsed, &snap, board, Out::new(reply));
-            }
             Shape::Query => {
-                let Some(snap) = shared.lock(|ctl| Snapshot::take(ctl, false)) else { return };
+                // `XTM?`'s snapshot also copies what its thrust limits read; they are evaluated
+                // from it without the lock (without a fitting table, a model point: 3 400
+                // instructions on the M4).
+                let Some(snap) = shared.lock(|ctl| Snapshot::take(ctl, thrust)) else { return };
                 self.run_query(&parsed, &snap, board, Out::new(reply));
             }
             Shape::Settings => {
                 let Some(snap) = shared.lock(|ctl| Snapshot::take(ctl, false)) else { return };
                 let start = reply.len();
                 if let Some(new) = self.run_settings(&parsed, &snap, board, Out::new(reply)) {
-                    // The same checks passed on the same settings (only commands change them,
-                    // and they run here one at a time): this cannot fail.
-                    if shared.lock(|ctl| ctl.set_config(new)).is_some_and(|r| r.is_err()) {
+                    // Checked and prepared here, without the lock; under it only copied in. The
+                    // same checks passed on the same settings (only commands change them, and
+                    // they run here one at a time): neither step can fail.
+                    let change = ConfigChange::prepare(snap.config(), snap.config_generation(), new);
+                    let applied = match change {
+                        Ok(change) => shared.lock(|ctl| ctl.apply_config(&change)).is_none_or(|r| r.is_ok()),
+                        Err(_) => false,
+                    };
+                    if !applied {
                         reply.truncate(start);
                         self.error = error::PARAM_OUT_OF_RANGE;
                     }
@@ -82,14 +84,13 @@ impl Gcs {
     }
 
     /// The locked sections [`Gcs::execute_shared`] runs for `pending`, by name, in order: a
-    /// query's `snapshot` (`XTM?`'s `controller copy`), a settings command's `snapshot` and
-    /// `set_config` (the second only when the settings change), any other command's `command`.
+    /// query's `snapshot`, a settings command's `snapshot` and
+    /// `apply_config` (the second only when the settings change), any other command's `command`.
     pub fn locked_sections(pending: &Pending) -> &'static [&'static str] {
         let parsed = Parsed::of(pending);
         match parsed.shape() {
-            Shape::Query if parsed.needs_thrust() => &["controller copy"],
             Shape::Query => &["snapshot"],
-            Shape::Settings => &["snapshot", "set_config"],
+            Shape::Settings => &["snapshot", "apply_config"],
             Shape::Locked => &["command"],
         }
     }

@@ -3,6 +3,7 @@
 //! (3 KiB with its model table): the settings, the state's scalars, and the counters that
 //! latch the errors the controller ran into on its own ([`Latch`]).
 
+use crate::controller::model_cache::ThrustInputs;
 use crate::controller::{Controller, ControllerConfig, FaultCode, State};
 use crate::recorder::Source;
 
@@ -31,6 +32,8 @@ impl Latch {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Snapshot {
     config: ControllerConfig,
+    /// The settings' generation (a settings change prepared from this snapshot names it).
+    config_generation: u32,
     state: State,
     servo: bool,
     referenced: bool,
@@ -43,8 +46,9 @@ pub struct Snapshot {
     preload_n: Option<f32>,
     drive_voltage_v: f32,
     drive_frequency_hz: f32,
-    /// Only when asked for (`XTM?`): it may evaluate the model.
-    thrust_limits: Option<(f32, f32)>,
+    /// Only when asked for (`XTM?`): what the thrust limits read, evaluated off the lock (they
+    /// may cost a model point).
+    thrust: Option<ThrustInputs>,
     pub latch: Latch,
 }
 
@@ -54,6 +58,7 @@ impl Snapshot {
     pub fn take(ctl: &Controller, thrust: bool) -> Self {
         Snapshot {
             config: *ctl.config(),
+            config_generation: ctl.config_generation(),
             state: ctl.state(),
             servo: ctl.servo(),
             referenced: ctl.referenced(),
@@ -66,13 +71,16 @@ impl Snapshot {
             preload_n: ctl.preload_n(),
             drive_voltage_v: ctl.drive_voltage_v(),
             drive_frequency_hz: ctl.drive_frequency_hz(),
-            thrust_limits: if thrust { ctl.thrust_limits() } else { None },
+            thrust: thrust.then(|| ctl.thrust_inputs()),
             latch: Latch::of(ctl),
         }
     }
 
     pub fn config(&self) -> &ControllerConfig {
         &self.config
+    }
+    pub fn config_generation(&self) -> u32 {
+        self.config_generation
     }
     pub fn state(&self) -> State {
         self.state
@@ -112,7 +120,7 @@ impl Snapshot {
     }
     /// As [`Controller::thrust_limits`] when the snapshot was taken with `thrust`; else None.
     pub fn thrust_limits(&self) -> Option<(f32, f32)> {
-        self.thrust_limits
+        self.thrust.and_then(|t| t.limits())
     }
 }
 

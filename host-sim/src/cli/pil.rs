@@ -39,10 +39,6 @@ pub struct PilArgs {
     /// instructions [default: 3000].
     #[arg(long)]
     pub lock_budget: Option<u32>,
-    /// With --gcs-locks: a budget of its own for the settings commands' `set_config` section
-    /// (controller code: `Controller::set_config`); the lock budget when absent.
-    #[arg(long)]
-    pub set_config_budget: Option<u32>,
     /// Print one JSON object instead of the summary.
     #[arg(long)]
     pub json: bool,

@@ -97,7 +97,7 @@ pub fn script(p: &Params) -> Vec<Step> {
     s.push(line("DRC 2 1 1 3 1 259", ok));
     s.push(line("RTR 10", ok));
     s.push(line("DRT 0 1 0", ok));
-    // Settings, each to another value (so that `set_config` runs); a full `SPA` line.
+    // Settings, each to another value (so that `apply_config` runs); a full `SPA` line.
     s.push(line(&format!("VEL 1 {:.4}", 0.9 * mm(cfg.velocity_max_nm_s)), ok));
     s.push(line(&format!("ACC 1 {:.4}", 0.9 * mm(cfg.accel_max_nm_s2)), ok));
     s.push(line(&format!("DEC 1 {:.4}", 0.9 * mm(cfg.decel_max_nm_s2)), ok));
@@ -198,7 +198,7 @@ pub struct Lock {
 /// One locked section of a command.
 #[derive(Debug, Clone, Serialize)]
 pub struct Section {
-    /// What runs in it ([`Gcs::locked_sections`]): `snapshot`, `controller copy`, `set_config`
+    /// What runs in it ([`Gcs::locked_sections`]): `snapshot`, `apply_config`
     /// or `command`.
     pub what: &'static str,
     pub instructions: u32,

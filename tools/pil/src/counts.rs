@@ -4,7 +4,7 @@
 
 use cortex_m_semihosting::hprintln;
 use piezo_drive::controller::model_cache::{FrequencyChoice, ModelRequest, ModelTable};
-use piezo_drive::controller::{Controller, Inputs, DAC_SAMPLES_PER_STEP};
+use piezo_drive::controller::{ConfigChange, Controller, Inputs, DAC_SAMPLES_PER_STEP};
 use piezo_drive::defaults::controller_config;
 use piezo_drive::generator::QuadratureGenerator;
 use piezo_drive::recorder::{trigger, DEPTH};
@@ -239,7 +239,8 @@ pub fn hot_paths() {
 }
 
 /// The controller code inside the GCS commands' locked sections (`src/gcs/lock.rs`):
-/// `Controller::set_config` (the settings commands) and its `validate_settings`, and
+/// `Controller::apply_config` (the settings commands; `validate_settings` runs off the lock, in
+/// `ConfigChange::prepare`), and
 /// `Controller::thrust_limits` (`XTM?`'s snapshot) when no model table fits the preload yet (the
 /// model task has not built one), which `host-sim pil --gcs-locks` cannot reach (the PIL image
 /// builds the table right after the tick that asks for it).
@@ -266,12 +267,14 @@ fn lock_parts(k: f32) {
         valid.add(counts(|| {
             core::hint::black_box(piezo_drive::controller::validate_settings(core::hint::black_box(&new))).ok();
         }));
+        // Prepared off the lock (the settings commands' check), applied under it.
+        let change = ConfigChange::prepare(ctl.config(), ctl.config_generation(), new).unwrap();
         set.add(counts(|| {
-            core::hint::black_box(ctl.set_config(core::hint::black_box(new))).ok();
+            core::hint::black_box(ctl.apply_config(core::hint::black_box(&change))).ok();
         }));
     }
     valid.print("validate_settings", k);
-    set.print("Controller::set_config, VEL changed (the settings commands' second lock)", k);
+    set.print("Controller::apply_config, VEL changed (the settings commands' second lock)", k);
 }
 
 /// The data recorder's share of the tick (`Recorder::sample` after the step, as the firmware's
