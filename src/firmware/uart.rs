@@ -1,15 +1,20 @@
 //! UART on LPUART1 (PA2 TX, PA3 RX: the ST-LINK virtual COM port), 115200 8N1, embassy's
 //! interrupt-driven `BufferedUart` (256-byte receive ring filled by the interrupt, so bytes keep
-//! arriving while a command runs). Lines go to the core's protocol (`piezo_drive::gcs`): bytes
-//! are collected outside any lock. Each command runs through
+//! arriving while a command runs; 512-byte transmit ring). Bytes go to the core's protocol
+//! (`piezo_drive::gcs::LinkSession`) as they are read, also while a reply is being written: a
+//! `#24` stops at once and cuts the reply. Bytes are collected outside any lock. Each command
+//! runs through
 //! `Gcs::execute_shared` (`src/gcs/lock.rs`), which decides what runs with the controller
 //! locked (the TIM7 tick masked) and what runs without; `host-sim pil --gcs-locks` counts every
 //! locked section of every command on the emulated M4 (docs/firmware.md, Loop timing).
 
+use core::future::{poll_fn, Future};
+use core::pin::pin;
+use core::task::Poll;
 use embassy_stm32::usart::BufferedUart;
 use embedded_io_async::{Read, Write};
 use piezo_drive::controller::{Controller, ControllerConfig};
-use piezo_drive::gcs::{Board, Gcs, LoopStats, Reply, SharedController};
+use piezo_drive::gcs::{Board, Gcs, LinkSession, LoopStats, SharedController};
 use piezo_drive::recorder::Recorder;
 
 use super::control::{loop_stats, CONTROLLER, RECORDER};
@@ -51,37 +56,46 @@ impl SharedController for TickShared {
     }
 }
 
+/// What the task waits for: the transmit ring taking reply bytes, or received bytes.
+enum Event {
+    Sent(Result<usize, embassy_stm32::usart::Error>),
+    Received(Result<usize, embassy_stm32::usart::Error>),
+}
+
+/// Reads and writes at once: received bytes are read while a reply is being written, so a `#24`
+/// stops the motor within a control period of its arrival and cuts the reply, and no byte is
+/// ever left to overflow the 256-byte receive ring (`LinkSession`, `src/gcs/session.rs`, decides
+/// what runs and what is sent; this is glue). Both futures are cancel-safe: embassy copies bytes
+/// only in the poll that completes them.
 #[embassy_executor::task]
-pub async fn uart_task(mut uart: BufferedUart<'static>) {
+pub async fn uart_task(uart: BufferedUart<'static>) {
+    let (mut tx, mut rx) = uart.split();
     let mut gcs = Gcs::new();
-    let mut reply = Reply::new();
+    let mut link = LinkSession::new();
     let mut board = FwBoard;
     let mut chunk = [0u8; 64];
     loop {
-        let n = match uart.read(&mut chunk).await {
-            Ok(n) => n,
-            Err(e) => {
-                defmt::warn!("uart: {}", e);
-                continue;
-            }
+        let out = link.output();
+        let event = if out.is_empty() {
+            Event::Received(rx.read(&mut chunk).await)
+        } else {
+            let mut write = pin!(tx.write(out));
+            let mut read = pin!(rx.read(&mut chunk));
+            // Received bytes first: a #24 is never kept waiting behind transmit-ring room.
+            poll_fn(|cx| {
+                if let Poll::Ready(r) = read.as_mut().poll(cx) {
+                    return Poll::Ready(Event::Received(r));
+                }
+                write.as_mut().poll(cx).map(Event::Sent)
+            })
+            .await
         };
-        for &byte in chunk.iter().take(n) {
-            let Some(pending) = gcs.push_byte(byte) else { continue };
-            reply.clear();
-            gcs.execute_shared(&pending, &mut TickShared, &mut board, &mut reply);
-            if !reply.is_empty() {
-                if let Err(e) = uart.write_all(&reply).await {
-                    defmt::warn!("uart: {}", e);
-                }
+        match event {
+            Event::Received(Ok(n)) => {
+                link.receive(chunk.get(..n).unwrap_or_default(), &mut gcs, &mut TickShared, &mut board)
             }
-            // A reply longer than the buffer (`DRR?`): part by part, formatted without a lock.
-            while gcs.reply_pending() {
-                reply.clear();
-                gcs.continue_reply(&board, &mut reply);
-                if let Err(e) = uart.write_all(&reply).await {
-                    defmt::warn!("uart: {}", e);
-                }
-            }
+            Event::Sent(Ok(n)) => link.sent(n, &mut gcs, &mut TickShared, &mut board),
+            Event::Received(Err(e)) | Event::Sent(Err(e)) => defmt::warn!("uart: {}", e),
         }
     }
 }

@@ -343,17 +343,18 @@ pub(super) fn drr_query(gcs: &mut Gcs, c: Query) -> GcsResult {
     out.line();
     out.s("# END_HEADER");
     let mut cursor = DrrCursor { columns, next: first, end: first + rows };
-    if write_rows(&mut cursor, rec, out) {
+    if write_rows(&mut cursor, rec, out, gcs.part_bytes) {
         out.open_end();
         gcs.drr = Some(cursor);
     }
     Ok(())
 }
 
-/// Writes the cursor's rows while they fit in `out`; whether rows remain.
-pub(super) fn write_rows(cursor: &mut DrrCursor, rec: &Recorder, out: &mut Out) -> bool {
+/// Writes the cursor's rows while they fit in `out` and leave it at most `part` bytes long;
+/// whether rows remain.
+pub(super) fn write_rows(cursor: &mut DrrCursor, rec: &Recorder, out: &mut Out, part: usize) -> bool {
     while cursor.next < cursor.end {
-        if out.room() < ROW_MAX {
+        if out.room() < ROW_MAX || out.buf.len().saturating_add(ROW_MAX) > part {
             break;
         }
         out.line();
@@ -376,16 +377,20 @@ impl DrrCursor {
     }
 }
 
+/// The shortest part [`Gcs::set_reply_part`] takes: two of the longest rows.
+pub const PART_MIN: usize = 2 * ROW_MAX;
+
 /// The long `DRR?` reply's continuation, beside the rows it writes.
 impl Gcs {
     /// The next part of a reply that goes on (see [`Gcs::reply_pending`]), appended to `reply`
-    /// (give it an empty one: a part is as long as the buffer takes).
+    /// (give it an empty one: a part is as long as the buffer takes, or as
+    /// [`Gcs::set_reply_part`] allows).
     pub fn continue_reply(&mut self, board: &dyn Board, reply: &mut Reply) {
         let Some(mut cursor) = self.drr.take() else { return };
         let Some(rec) = board.recorder() else { return };
         let mut out = Out { buf: reply, lines: 0, ok: true };
         let before = cursor.rows_left();
-        if write_rows(&mut cursor, rec, &mut out) {
+        if write_rows(&mut cursor, rec, &mut out, self.part_bytes) {
             if cursor.rows_left() == before {
                 // No room for a single row: the caller's buffer was not empty. Give up.
                 return;

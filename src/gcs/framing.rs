@@ -121,6 +121,16 @@ impl Gcs {
         }
     }
 
+    /// Received bytes were lost (a board's queue of received bytes was full:
+    /// [`super::LinkSession`]): the line they belonged to executes nothing and latches error 3
+    /// (GCS: command too long or command buffer overrun). `line_ended`: the lost bytes ended
+    /// with an LF; otherwise the rest of the line, up to its LF, is discarded too.
+    pub fn receive_overrun(&mut self, line_ended: bool) {
+        self.line.clear();
+        self.overflow = !line_ended;
+        self.error = super::error::COMMAND_TOO_LONG;
+    }
+
     /// Forgets a partly received line (e.g. when a client disconnects mid-line).
     pub fn discard_partial_line(&mut self) {
         self.line.clear();

@@ -95,6 +95,15 @@ impl Gcs {
         }
     }
 
+    /// `#24` received while a reply is being sent ([`super::LinkSession`]): stops the
+    /// controller at once, in a locked section of its own that runs only
+    /// [`Controller::stop`] (a part of `#24`'s `command` section), ahead of the commands received
+    /// before it. The byte then runs in its place among them like any `#24` (stops again,
+    /// latches error 10).
+    pub fn stop_now(&mut self, shared: &mut impl SharedController) {
+        shared.lock(|ctl| ctl.stop());
+    }
+
     /// Executes `pending` against a controller no tick shares and appends the reply bytes
     /// (possibly none): [`Gcs::execute_shared`] with [`Unshared`].
     pub fn execute(

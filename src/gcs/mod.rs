@@ -28,6 +28,7 @@ pub mod lock;
 mod motion;
 pub mod num;
 pub mod params;
+pub mod session;
 mod settings;
 pub mod snapshot;
 mod state;
@@ -36,6 +37,7 @@ pub use commands::{Command, COMMANDS};
 pub use framing::Pending;
 pub use info::{IDN_MAKER, IDN_MODEL, IDN_VERSION, STAGE_NAME};
 pub use lock::{SharedController, Unshared};
+pub use session::LinkSession;
 
 use crate::controller::ControllerConfig;
 use crate::recorder::Recorder;
@@ -133,6 +135,8 @@ pub struct Gcs {
     seen_limit_stops: u32,
     /// The rest of a `DRR?` reply, while one is being sent.
     drr: Option<datarec::DrrCursor>,
+    /// Longest part of a reply that goes on ([`Gcs::set_reply_part`]).
+    part_bytes: usize,
 }
 
 impl Default for Gcs {
@@ -152,7 +156,21 @@ impl Gcs {
             seen_reference_failures: 0,
             seen_limit_stops: 0,
             drr: None,
+            part_bytes: REPLY_CAPACITY,
         }
+    }
+
+    /// Formats a reply that goes on over several buffers (`DRR?`) in parts of at most `bytes`
+    /// (at least [`datarec::PART_MIN`], at most [`REPLY_CAPACITY`]; the header of `DRR?` is
+    /// written whole): a board that must notice received bytes between parts (#24) keeps each
+    /// part's formatting short. [`REPLY_CAPACITY`] until set.
+    pub fn set_reply_part(&mut self, bytes: usize) {
+        self.part_bytes = bytes.clamp(datarec::PART_MIN, REPLY_CAPACITY);
+    }
+
+    /// Drops what is left of a reply that goes on (`#24` cut it short).
+    pub fn abandon_reply(&mut self) {
+        self.drr = None;
     }
 
     /// The latched error (without clearing it).

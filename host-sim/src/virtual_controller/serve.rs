@@ -1,14 +1,16 @@
 //! `host-sim serve`: the virtual controller. The firmware's control core runs against the plant
 //! paced to the wall clock, and speaks PI GCS 2.0 through the very protocol module the firmware
 //! uses ([`piezo_drive::gcs`]), over TCP (`--tcp 127.0.0.1:PORT`) or a pseudo-terminal (`--pty`).
-//! One client at a time; a client that disconnects mid-line leaves nothing behind.
+//! One client at a time; a client that disconnects mid-line leaves nothing behind. The link
+//! runs through the board's [`LinkSession`]: a `#24` received while a reply is being written
+//! stops at once and cuts the reply, as on the board's UART.
 
 use crate::harness::sil::{controller_config, Sil};
 use crate::motor::params::Params;
 use crate::motor::plant::ExternalLoad;
 use anyhow::{bail, Context, Result};
 use piezo_drive::controller::ControllerConfig;
-use piezo_drive::gcs::{Board, Gcs, LoopStats, Pending, Reply};
+use piezo_drive::gcs::{Board, Gcs, LinkSession, LoopStats, Pending, Reply, Unshared};
 use piezo_drive::recorder::Recorder;
 use piezo_drive::storage;
 use std::fmt::Write as _;
@@ -230,34 +232,6 @@ impl VirtualController {
         }
     }
 
-    /// Feeds received bytes through the protocol, each command with a reply buffer of its own
-    /// (a full `REPLY_CAPACITY`, as on the board), handing every non-empty reply to `write` as
-    /// soon as its command ran. Stops at the first failed write.
-    fn feed_each(
-        &mut self,
-        bytes: &[u8],
-        mut write: impl FnMut(&[u8]) -> std::io::Result<()>,
-    ) -> std::io::Result<()> {
-        for &b in bytes {
-            if let Some(p) = self.gcs.push_byte(b) {
-                let mut out = Reply::new();
-                self.execute(&p, &mut out);
-                if !out.is_empty() {
-                    write(&out)?;
-                }
-                // A reply longer than one buffer (`DRR?`), part by part as on the board.
-                while self.gcs.reply_pending() {
-                    out.clear();
-                    self.gcs.continue_reply(&self.board, &mut out);
-                    if !out.is_empty() {
-                        write(&out)?;
-                    }
-                }
-            }
-        }
-        Ok(())
-    }
-
     /// Runs one command; its reply is appended to `out`.
     fn execute(&mut self, p: &Pending, out: &mut Reply) {
         let before = out.len();
@@ -281,39 +255,87 @@ impl VirtualController {
         }
     }
 
-    /// Serves one client until it goes away (or `deadline` passes).
+    /// Serves one client until it goes away (or `deadline` passes), through the board's
+    /// [`LinkSession`]: received bytes are read between the parts of a reply as the board's
+    /// UART task reads them, so a `#24` stops at once and cuts a long reply the same way. Only
+    /// as many bytes are read as the session's queue takes: TCP and the pty hold the rest back,
+    /// so nothing is ever lost here.
     fn serve_client(&mut self, link: &mut dyn Link, deadline: Option<Instant>) -> Result<()> {
+        let mut session = LinkSession::new();
         let mut buf = [0u8; 512];
+        // The client stopped sending (or went away): what it sent is still answered, as far as
+        // it takes the replies.
+        let mut eof = false;
         loop {
             if deadline.is_some_and(|d| Instant::now() >= d) {
                 return Ok(());
             }
             self.advance();
-            let n = match link.poll_read(&mut buf) {
-                Ok(n) => n,
-                Err(e) => {
-                    if self.verbose {
-                        eprintln!("client gone: {e}");
+            let room = if eof { 0 } else { session.room().min(buf.len()) };
+            let n = if room == 0 {
+                0
+            } else {
+                match link.poll_read(buf.get_mut(..room).unwrap_or_default()) {
+                    Ok(n) => n,
+                    Err(e) => {
+                        if self.verbose {
+                            eprintln!("client stopped sending: {e}");
+                        }
+                        eof = true;
+                        0
                     }
-                    self.gcs.discard_partial_line();
-                    return Ok(());
                 }
             };
-            if n == 0 {
-                std::thread::sleep(Duration::from_micros(500));
+            if n > 0 {
+                let chunk = buf.get(..n).unwrap_or_default();
+                if self.verbose {
+                    eprintln!("[{:9.4} s] > {}", self.sil.time_s() - self.sim_start_s, escape(chunk));
+                }
+                let mut ctl = Unshared(&mut self.sil.controller);
+                session.receive(chunk, &mut self.gcs, &mut ctl, &mut self.board);
+            }
+            let out = session.output();
+            if out.is_empty() && eof {
+                self.gcs.discard_partial_line();
+                self.gcs.abandon_reply();
+                return Ok(());
+            }
+            if out.is_empty() {
+                if n == 0 {
+                    std::thread::sleep(Duration::from_micros(500));
+                }
                 continue;
             }
-            let chunk = buf.get(..n).unwrap_or_default();
-            if let Err(e) = self.feed_each(chunk, |reply| link.write_all_bytes(reply)) {
+            // One part at a time, reading in between.
+            let part = out.get(..out.len().min(WRITE_PART)).unwrap_or_default();
+            if self.verbose {
+                eprintln!(
+                    "[{:9.4} s] < {}{}",
+                    self.sil.time_s() - self.sim_start_s,
+                    escape(part),
+                    match self.gcs.latched_error() {
+                        0 => String::new(),
+                        e => format!("  [error {e} latched]"),
+                    }
+                );
+            }
+            if let Err(e) = link.write_all_bytes(part) {
                 if self.verbose {
                     eprintln!("client gone while replying: {e}");
                 }
                 self.gcs.discard_partial_line();
+                self.gcs.abandon_reply();
                 return Ok(());
             }
+            let sent = part.len();
+            let mut ctl = Unshared(&mut self.sil.controller);
+            session.sent(sent, &mut self.gcs, &mut ctl, &mut self.board);
         }
     }
 }
+
+/// Bytes written to the client at once: what the board's 512-byte transmit ring takes.
+const WRITE_PART: usize = 512;
 
 #[cfg(unix)]
 mod pty {
@@ -703,6 +725,86 @@ mod tests {
                 assert_eq!(spa_lines, PARAMS.len());
             }
         }
+    }
+
+    /// A link that delivers each input once the server has written `after` bytes, collects what
+    /// is written, and reports the client gone once all is delivered and 20 polls found nothing
+    /// new written.
+    struct Scripted {
+        inputs: std::collections::VecDeque<(usize, Vec<u8>)>,
+        written: Vec<u8>,
+        idle_polls: usize,
+        seen: usize,
+    }
+
+    impl Link for Scripted {
+        fn poll_read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            if let Some((after, bytes)) = self.inputs.front() {
+                if self.written.len() >= *after && bytes.len() <= buf.len() {
+                    buf[..bytes.len()].copy_from_slice(bytes);
+                    let n = bytes.len();
+                    self.inputs.pop_front();
+                    return Ok(n);
+                }
+                return Ok(0);
+            }
+            if self.written.len() == self.seen {
+                self.idle_polls += 1;
+            } else {
+                (self.seen, self.idle_polls) = (self.written.len(), 0);
+            }
+            if self.idle_polls >= 20 {
+                return Err(std::io::Error::new(ErrorKind::UnexpectedEof, "done"));
+            }
+            Ok(0)
+        }
+        fn write_all_bytes(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+            self.written.extend_from_slice(bytes);
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_stop_during_a_long_reply_stops_and_cuts_it_at_a_line() {
+        let p = Params::prototype();
+        let mut vc = VirtualController::new(&p, &args()).unwrap();
+        let setup =
+            "RON 1 0\nSVO 1 1\nDRC 1 1 1 2 1 2 3 1 3 4 1 1 5 1 2 6 1 3 7 1 1 8 1 2\nRTR 1\nDRT 0 4 0\n";
+        assert_eq!(send(&mut vc, &format!("{setup}MOV 1 5\nERR?\n")), "0\n");
+        for _ in 0..400 {
+            vc.period();
+        }
+        assert_eq!(vc.sil.controller.state(), State::Moving);
+        // #24 once 2 000 bytes of the DRR? reply (eight tables of 360 points) are out.
+        let mut link = Scripted {
+            inputs: [(0, b"DRR?\n".to_vec()), (2000, b"\x18ERR?\n".to_vec())].into(),
+            written: Vec::new(),
+            idle_polls: 0,
+            seen: 0,
+        };
+        vc.serve_client(&mut link, None).unwrap();
+        // Stopped: the target is the braking point, short of 5 mm.
+        assert!(vc.sil.controller.target_nm() < 5_000_000, "{}", vc.sil.controller.target_nm());
+        let got = String::from_utf8(link.written).unwrap();
+        // The DRR? reply ends at the first LF without a space before it (PIPython's end of a
+        // reply), at most one write part (512 bytes) and one line after the #24 came; then
+        // ERR? → 10 (the #24 ran in its place).
+        let end = got.as_bytes().windows(2).position(|w| w[0] != b' ' && w[1] == b'\n').unwrap() + 2;
+        let (drr, rest) = got.split_at(end);
+        assert_eq!(rest, "10\n", "{got}");
+        assert!(drr.len() >= 2000 && drr.len() <= 2000 + 512 + 120, "{}", drr.len());
+        let header_end = drr.find("# END_HEADER \n").unwrap() + "# END_HEADER \n".len();
+        let ndata: usize =
+            drr.lines().find_map(|l| l.strip_prefix("# NDATA = ")).unwrap().trim().parse().unwrap();
+        let rows: Vec<&str> = drr[header_end..].lines().collect();
+        // Fewer rows than announced, every one whole (eight numbers), the last ended by a bare LF.
+        assert_eq!(ndata, 360);
+        assert!(!rows.is_empty() && rows.len() < ndata, "{}", rows.len());
+        for row in &rows {
+            let values: Vec<f64> = row.split_whitespace().map(|v| v.parse().unwrap()).collect();
+            assert_eq!(values.len(), 8, "{row:?}");
+        }
+        assert!(drr.ends_with("\n") && !drr.ends_with(" \n"));
     }
 
     #[test]
