@@ -20,34 +20,46 @@ impl ModelRequest {
     /// eq. 19 otherwise; net of the guide's friction); itself when there is no choice or no
     /// candidate moves against the load. Ties go to the higher frequency.
     pub fn chosen(&self) -> ModelRequest {
-        let c = &self.choice;
-        if c.len <= 1 {
+        if self.choice.len <= 1 {
             return *self;
         }
-        let preload = fx_from_f32(self.preload_n);
-        let top = fx_from_f32(self.max_drive_v.max(0.0));
-        // Past the model's stall force at every candidate the model cannot rank them (each speed
-        // is zero, or a root below it): the frequency of the request stays. At 5 N a 50 kg
-        // carriage's observer read 1.95 N against the model's 1.75 N stall, the drive went from
-        // 2.2 to 1.8 kHz, where the plant runs at a quarter of the speed, and the move tripped
-        // the following-error limit.
         let mut best = (0.0, *self);
-        for (&f, pv) in c.frequency_hz.iter().zip(c.per_volt.iter()).take(c.len) {
-            let full = pv.point(preload, top);
-            let orbits = Orbits::new(&full, f, self.moving_mass_kg);
-            let speed = with_guide_friction(self, c.load_n.max(0.0), |foot_load| {
-                if orbits.inertia_matters() {
-                    orbits.mean_speed_mm_s(foot_load).unwrap_or(0.0)
-                } else {
-                    full.speed_at_load_near(fx_from_f32(foot_load), f32::NAN).to_num()
-                }
-            });
-            if speed > best.0 {
-                best = (speed, ModelRequest { per_volt: *pv, frequency_hz: f, ..*self });
+        for i in 0..self.choice.len {
+            self.rank_candidate(i, &mut best);
+        }
+        self.with_choice_made(best)
+    }
+
+    /// Candidate `i`'s speed at full drive against the choice's load; it becomes `best` (the
+    /// fastest so far, and its request) when faster. Past the model's stall force at every
+    /// candidate the model cannot rank them (each speed is zero, or a root below it): the
+    /// frequency of the request stays. At 5 N a 50 kg carriage's observer read 1.95 N against the
+    /// model's 1.75 N stall, the drive went from 2.2 to 1.8 kHz, where the plant runs at a quarter
+    /// of the speed, and the move tripped the following-error limit.
+    pub(super) fn rank_candidate(&self, i: usize, best: &mut (f32, ModelRequest)) {
+        let c = &self.choice;
+        let (Some(&f), Some(pv)) = (c.frequency_hz.get(i), c.per_volt.get(i)) else { return };
+        let full = pv.point(fx_from_f32(self.preload_n), fx_from_f32(self.max_drive_v.max(0.0)));
+        let orbits = Orbits::new(&full, f, self.moving_mass_kg);
+        let speed = with_guide_friction(self, c.load_n.max(0.0), |foot_load| {
+            if orbits.inertia_matters() {
+                orbits.mean_speed_mm_s(foot_load).unwrap_or(0.0)
+            } else {
+                full.speed_at_load_near(fx_from_f32(foot_load), f32::NAN).to_num()
             }
+        });
+        if speed > best.0 {
+            *best = (speed, ModelRequest { per_volt: *pv, frequency_hz: f, ..*self });
+        }
+    }
+
+    /// The request the choice's `best` makes (itself without a choice), its choice fixed there.
+    pub(super) fn with_choice_made(&self, best: (f32, ModelRequest)) -> ModelRequest {
+        if self.choice.len <= 1 {
+            return *self;
         }
         let mut chosen = best.1;
-        chosen.choice = FrequencyChoice::fixed(chosen.frequency_hz, chosen.per_volt, c.load_n);
+        chosen.choice = FrequencyChoice::fixed(chosen.frequency_hz, chosen.per_volt, self.choice.load_n);
         chosen
     }
 }

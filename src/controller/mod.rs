@@ -34,6 +34,7 @@ mod plain_pi;
 mod referencing;
 mod supervision;
 mod supervisor;
+pub mod table_build;
 pub use commands::ConfigChange;
 pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
 use feedback::Feedback;

@@ -26,6 +26,7 @@
 //! profile has no speed to move at (as without a preload reading).
 
 pub use super::frequency_choice::{FrequencyChoice, FREQ_CANDIDATES};
+use super::table_build::TableBuild;
 use super::{Controller, ControllerConfig};
 use crate::fastmath::{acos_f32, clamp_f32, fx_from_f32};
 use crate::inertia::Orbits;
@@ -249,49 +250,31 @@ pub(super) fn with_guide_friction(
 }
 
 /// Thrust of a row at zero slider speed: the φp = π/2 column.
-fn thrust_at_zero_speed(row: &[f32; PHASE_POINTS]) -> f32 {
+pub(super) fn thrust_at_zero_speed(row: &[f32; PHASE_POINTS]) -> f32 {
     row.get((PHASE_POINTS - 1) / 2).copied().unwrap_or(0.0)
 }
 
-/// The thrust grid (N) at the request's preload, net of the guide's friction, from the carriage's
-/// periodic motion where it rides the foot; and the largest thrust in it.
-fn thrust_grid(request: &ModelRequest, riding: bool) -> ([[f32; PHASE_POINTS]; VOLT_POINTS], f32) {
+/// Row `j` of the thrust grid (N) at the request's preload, net of the guide's friction, from
+/// the carriage's periodic motion where it rides the foot.
+pub(super) fn thrust_row(request: &ModelRequest, riding: bool, j: usize) -> [f32; PHASE_POINTS] {
     let top = request.max_drive_v.max(0.0);
     let preload = fx_from_f32(request.preload_n);
     let step_v = top / (VOLT_POINTS - 1) as f32;
-    let mut thrust_n = [[0.0f32; PHASE_POINTS]; VOLT_POINTS];
-    let mut largest = 0.0f32;
-    for (j, row) in thrust_n.iter_mut().enumerate() {
-        let volts = if j == 0 { ROW0_SHARE * step_v } else { step_v * j as f32 };
-        let point = request.per_volt.point(preload, fx_from_f32(volts));
-        for (k, t) in row.iter_mut().enumerate() {
-            let phi = Fx::PI * k as i32 / (PHASE_POINTS - 1) as i32;
-            *t = point.thrust_n(point.foot_speed_mm_s.saturating_mul(cos(phi))).to_num();
-        }
-        if riding {
-            let orbits = Orbits::new(&point, request.frequency_hz, request.moving_mass_kg);
-            if orbits.inertia_matters() {
-                with_inertia(row, &orbits, point.foot_speed_mm_s.to_num());
-            }
-        }
-        less_guide_friction(row, request, point.foot_speed_mm_s.to_num());
-        largest = row.iter().fold(largest, |a, &t| a.max(t.abs()));
+    let volts = if j == 0 { ROW0_SHARE * step_v } else { step_v * j as f32 };
+    let point = request.per_volt.point(preload, fx_from_f32(volts));
+    let mut row = [0.0f32; PHASE_POINTS];
+    for (k, t) in row.iter_mut().enumerate() {
+        let phi = Fx::PI * k as i32 / (PHASE_POINTS - 1) as i32;
+        *t = point.thrust_n(point.foot_speed_mm_s.saturating_mul(cos(phi))).to_num();
     }
-    (thrust_n, largest)
-}
-
-/// The speed table: forward speed at full drive against each of [`LOAD_POINTS`] loads from 0 to
-/// `stall_n`, net of the guide's friction; `speed(foot_load, hint)` gives the foot's speed against
-/// a load at the foot, `hint` the last load's answer (NaN at first).
-fn speed_table(request: &ModelRequest, stall_n: f32, speed: impl Fn(f32, f32) -> f32) -> [f32; LOAD_POINTS] {
-    let mut speed_mm_s = [0.0f32; LOAD_POINTS];
-    let mut hint = f32::NAN;
-    for (k, s) in speed_mm_s.iter_mut().enumerate() {
-        let load = stall_n * k as f32 / (LOAD_POINTS - 1) as f32;
-        *s = with_guide_friction(request, load, |foot_load| speed(foot_load, hint));
-        hint = *s;
+    if riding {
+        let orbits = Orbits::new(&point, request.frequency_hz, request.moving_mass_kg);
+        if orbits.inertia_matters() {
+            with_inertia(&mut row, &orbits, point.foot_speed_mm_s.to_num());
+        }
     }
-    speed_mm_s
+    less_guide_friction(&mut row, request, point.foot_speed_mm_s.to_num());
+    row
 }
 
 impl ModelTable {
@@ -300,20 +283,27 @@ impl ModelTable {
     /// node and [`LOAD_POINTS`] speed roots or, for a carriage whose speed ripples, periodic orbits
     /// (a few hundred thousand instructions on the Cortex-M4; up to 2.25 million measured in PIL
     /// for the 1 kg default with the choice, 1.35 million without; more for a carriage that rides
-    /// the foot, whose whole grid comes from orbits), for a lower-priority context.
+    /// the foot, whose whole grid comes from orbits), for a lower-priority context. All at once:
+    /// [`TableBuild`] is the same work in slices.
     pub fn build(request: &ModelRequest) -> Self {
-        let request = &request.chosen();
+        let mut build = TableBuild::new(request);
+        loop {
+            if let Some(table) = build.step() {
+                return table;
+            }
+        }
+    }
+
+    /// The table from its grid (N, at the grid's nodes), the grid's largest thrust, the stall
+    /// force and the speed table of `request` (the one chosen).
+    pub(super) fn assemble(
+        request: &ModelRequest,
+        thrust_n: &[[f32; PHASE_POINTS]; VOLT_POINTS],
+        largest: f32,
+        stall_n: f32,
+        speed_mm_s: [f32; LOAD_POINTS],
+    ) -> Self {
         let top = request.max_drive_v.max(0.0);
-        let preload = fx_from_f32(request.preload_n);
-        // A light carriage: its full-drive speed from its periodic motion, and where that is far
-        // below the constant-speed model's, the whole grid from it too (see `RIDING_SHARE`).
-        let full = request.per_volt.point(preload, fx_from_f32(top));
-        let full_orbits = Orbits::new(&full, request.frequency_hz, request.moving_mass_kg);
-        let light = full_orbits.inertia_matters();
-        let constant_v0: f32 = full.no_load_speed_mm_s().to_num();
-        let riding =
-            light && full_orbits.mean_speed_mm_s(0.0).is_some_and(|v0| v0 < RIDING_SHARE * constant_v0);
-        let (thrust_n, largest) = thrust_grid(request, riding);
         let thrust_scale_n = if largest > 0.0 { largest / 32_767.0 } else { 1.0 };
         let thrust_q = thrust_n.map(|row| {
             row.map(|t| {
@@ -321,26 +311,6 @@ impl ModelTable {
                 (if q >= 0.0 { q + 0.5 } else { q - 0.5 }) as i16
             })
         });
-        let (stall_n, speed_mm_s) = if light {
-            // The stall (the full-drive row's thrust at zero speed: the carriage's when the grid
-            // is the carriage's), then the periodic motion at each load of the speed table.
-            let top_row = thrust_n.last().copied().unwrap_or([0.0; PHASE_POINTS]);
-            let stall_n = thrust_at_zero_speed(&top_row).max(0.0);
-            (
-                stall_n,
-                speed_table(request, stall_n, |foot_load, _| {
-                    full_orbits.mean_speed_mm_s(foot_load).unwrap_or(0.0).max(0.0)
-                }),
-            )
-        } else {
-            let stall_n = (full.stall_force_n().to_num::<f32>() - request.rail_coulomb_n).max(0.0);
-            (
-                stall_n,
-                speed_table(request, stall_n, |foot_load, hint| {
-                    full.speed_at_load_near(fx_from_f32(foot_load), hint).to_num()
-                }),
-            )
-        };
         ModelTable {
             request: *request,
             thrust_q,

@@ -4,6 +4,7 @@
 
 use cortex_m_semihosting::hprintln;
 use piezo_drive::controller::model_cache::{FrequencyChoice, ModelRequest, ModelTable};
+use piezo_drive::controller::table_build::TableBuild;
 use piezo_drive::controller::{ConfigChange, Controller, Inputs, DAC_SAMPLES_PER_STEP};
 use piezo_drive::defaults::controller_config;
 use piezo_drive::generator::QuadratureGenerator;
@@ -198,6 +199,22 @@ pub fn hot_paths() {
         }));
     }
     build_choice.print("ModelTable::build, frequency chosen from 1.2-2.2 kHz", k);
+    // The same build in slices, as the board's model task runs it (yielding between them): the
+    // longest slice is the longest the UART and preload tasks wait for it. A 0.1 kg carriage's
+    // grid comes from its periodic motion (the heaviest rows).
+    let light = ModelRequest { moving_mass_kg: 0.1, ..choosing };
+    for (name, r) in [
+        ("TableBuild::step, 1 kg, frequency chosen (one slice of the build)", choosing),
+        ("TableBuild::step, 0.1 kg, frequency chosen (one slice of the build)", light),
+    ] {
+        let mut slices = Stat::new();
+        let mut sliced = TableBuild::new(&r);
+        let mut done = false;
+        while !done {
+            slices.add(counts(|| done = core::hint::black_box(&mut sliced).step().is_some()));
+        }
+        slices.print(name, k);
+    }
     let (mut t_inv, mut t_thrust, mut t_speed) = (Stat::new(), Stat::new(), Stat::new());
     let mut hint_v = 50.0f32;
     for i in 0..2000i32 {
