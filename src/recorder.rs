@@ -3,7 +3,9 @@
 //! filled once per control tick from the controller's public state after `step`
 //! ([`Recorder::sample`]), read back by the protocol ([`crate::gcs`]).
 //!
-//! Memory: `TABLES × DEPTH` i32 points, 8 × 360 × 4 = 11 520 bytes, plus a few words per table.
+//! Memory: `TABLES × DEPTH` i32 points, 8 × 1 024 × 4 = 32 768 bytes, plus a few words per table
+//! (PI's controllers record at least 1 024 points per table; PIPython's datarectools reads the depth
+//! from parameter 0x16000201).
 //! A point is an integer in the option's own unit (nm, mV, mHz, mN, a state code): the tick only
 //! stores, the protocol formats ([`Recorder::write_point`]).
 //!
@@ -29,7 +31,7 @@ use core::sync::atomic::{AtomicI32, AtomicU32, Ordering};
 /// Record tables (`TNR?`).
 pub const TABLES: usize = 8;
 /// Points per table.
-pub const DEPTH: usize = 360;
+pub const DEPTH: usize = 1024;
 /// Bytes of recorded points.
 pub const BUFFER_BYTES: usize = TABLES * DEPTH * core::mem::size_of::<i32>();
 /// Largest record rate (`RTR`): one point per 65 535 ticks (6.5 s at 10 kHz).

@@ -995,7 +995,7 @@ fn recorder_options_for_pipython() {
 4=Immediately \n\
 6=Next command changing the target position (MOV, MVR, XOS), then reset \n\
 #Additional information \n\
-360 datapoints per table \n\
+1024 datapoints per table \n\
 8 record tables; record rate RTR in control ticks (servo update time: parameter 0x0E000200) \n\
 end of help\n",
     )]);

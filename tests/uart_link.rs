@@ -1,8 +1,8 @@
 //! The board's UART link modelled byte by byte (issue 30, item 8): 115 200 baud 8N1 (10 bits a
 //! byte: 86.8 µs), the receive ring of 256 bytes and the transmit ring of 512 bytes of
 //! `src/main.rs`, the control tick every 100 µs, and the UART task as `src/firmware/uart.rs` runs
-//! it over [`LinkSession`] (reads and writes at once). The host asks for the whole data recorder
-//! (`DRR?`: eight full tables, 27 KB), sends `#24` 20 ms into the reply, then 62 more commands at
+//! it over [`LinkSession`] (reads and writes at once). The host asks for a long reply of the data recorder
+//! (`DRR? 1 360`: eight tables' first 360 points, 27 KB), sends `#24` 20 ms into the reply, then 62 more commands at
 //! once (310 bytes, more than the receive ring holds). Expectations from the byte times, the
 //! rings' sizes and the GCS framing (a reply ends with an LF not preceded by a space), not from
 //! what the code prints. The same scenario through the task as it was (the whole reply written
@@ -35,6 +35,10 @@ const TICK_NS: u64 = 100_000;
 const PRELOAD_WORD: u16 = 1310;
 /// The move under way while the reply streams: 0 → 40 mm (some seconds).
 const TARGET_NM: i64 = 40_000_000;
+/// The long reply: the first 360 points of all eight tables (27 KB), points the recorder never
+/// writes again while it goes on recording.
+const DRR: &[u8] = b"DRR? 1 360\n";
+
 /// When the host sends `#24`, after the start of `DRR?`.
 const STOP_AT_NS: u64 = 20_000_000;
 /// What the host sends right after the `#24`.
@@ -54,7 +58,7 @@ fn byte_time_is_86_8_us() {
 }
 
 /// Controller, protocol and board after the setup: servo on, reference mode off, eight record
-/// tables full (360 points of a move to 40 mm that is still under way).
+/// tables recording (400 points so far of a move to 40 mm that is still under way).
 struct Board {
     gcs: Gcs,
     ctl: Controller,
@@ -87,7 +91,7 @@ impl Board {
             }
             assert!(reply.is_empty() && b.gcs.latched_error() == 0, "{cmd}");
         }
-        // 360 points at one a tick, and a few ticks more.
+        // 400 points at one a tick.
         for _ in 0..400 {
             b.tick();
         }
@@ -206,7 +210,7 @@ fn run(task: &mut dyn Task, until_ns: u64) -> Run {
     after.push_str(&"POS?\n".repeat(POS_QUERIES));
     after.push_str("ERR?\n");
     let mut host: Vec<(u64, u8)> = Vec::new();
-    for (k, &byte) in b"DRR?\n".iter().enumerate() {
+    for (k, &byte) in DRR.iter().enumerate() {
         host.push((byte_end_ns(0, k as u64), byte));
     }
     let stop_arrived_ns = byte_end_ns(STOP_AT_NS, 0);
@@ -275,7 +279,7 @@ fn full_drr_reply() -> Vec<u8> {
     let mut b = Board::new();
     let mut out = Vec::new();
     let mut reply = Reply::new();
-    for &byte in b"DRR?\n" {
+    for &byte in DRR {
         if let Some(p) = b.gcs.push_byte(byte) {
             b.gcs.execute(&p, &mut b.ctl, &mut b.board, &mut reply);
         }

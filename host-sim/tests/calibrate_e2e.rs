@@ -36,8 +36,8 @@ fn heavy_file() -> String {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("params/heavy-slider.toml").display().to_string()
 }
 
-/// Record rate of the moves: 3 ms per point, 1.08 s of recording per move.
-const RECORD_RATE: u32 = 30;
+/// Record rate of the moves: 1.1 ms per point, 1.13 s of recording per move (1 024 points).
+const RECORD_RATE: u32 = 11;
 
 /// `moves --json` on `addr`: (mean peak following error nm, mean settle s, record period s). A
 /// move that has not settled by the end of its recording counts with the recording's length,
@@ -64,7 +64,7 @@ fn moves(addr: &str, count: usize, unsettled_ok: bool) -> (f64, f64, f64) {
         .map(|r| {
             r["settle_s"].as_f64().unwrap_or_else(|| {
                 assert!(unsettled_ok, "move {r} did not settle within its recording");
-                360.0 * period_s
+                piezo_drive::recorder::DEPTH as f64 * period_s
             })
         })
         .sum::<f64>()

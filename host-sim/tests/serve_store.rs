@@ -66,7 +66,7 @@ const SET: &[(&str, &str, &str)] = &[
 /// The read-only parameters (hardware facts, not stored) at the simulated board's values:
 /// 50 nm encoder, 10 kHz loop.
 const READ_ONLY: &[(&str, &str)] =
-    &[("0x1020", "50"), ("0x1021", "10000"), ("0xE000200", "0.0001"), ("0x16000201", "360")];
+    &[("0x1020", "50"), ("0x1021", "10000"), ("0xE000200", "0.0001"), ("0x16000201", "1024")];
 
 /// `SPA?` as (id, value) pairs.
 fn all_parameters(c: &mut GcsClient) -> Vec<(String, String)> {

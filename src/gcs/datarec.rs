@@ -1,7 +1,7 @@
 //! The data recorder's commands (`DRC`, `DRC?`, `DRL?`, `DRR?`, `DRT`, `DRT?`, `HDR?`, `RTR`,
 //! `RTR?`, `TNR?`), one handler each, on the board's [`Recorder`] ([`Board::recorder`]; a board
 //! without one answers them as unknown commands). Formats as PIPython reads them: `DRC?` →
-//! `1=1 2` (table=source option), `DRT?` → `1=6 0`, `DRL?` → `1=360`, `RTR?`/`TNR?` → a number,
+//! `1=1 2` (table=source option), `DRT?` → `1=6 0`, `DRL?` → `1=1024`, `RTR?`/`TNR?` → a number,
 //! `HDR?` → `#RecordOptions`, `#TriggerOptions` and `#Additional information` sections of
 //! `<number>=<text>` lines, `DRR?` → PI's GCS array: `# KEY = value` header lines up to
 //! `# END_HEADER`, then one line per point with one column per table.
@@ -174,7 +174,7 @@ pub(super) fn drt_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
     Ok(())
 }
 
-/// `DRL? [{<RecTableID>}]` → `1=360`: points recorded ([`DEPTH`] when the table is full).
+/// `DRL? [{<RecTableID>}]` → `1=1024`: points recorded ([`DEPTH`] when the table is full).
 pub(super) fn drl_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
     let Query { args, board, out, .. } = c;
     let rec = recorder(board)?;

@@ -15,7 +15,7 @@ trigger 2: the next command). Checks of the first recording:
 - the recorded settle time (first point from which the position stays within +-1 encoder count,
   50 nm, of the target) agrees with `host-sim move --to-um 1000 --json` within one record period.
   The move starts as `host-sim move` does: at rest at 0 (`RON 1 0`, `POS 1 0`), servo just on.
-  Record period: RTR 50 (5 ms, 1.8 s of 360 points). The virtual controller is paced by the wall
+  Record period: RTR 50 (5 ms, 5.1 s of 1024 points). The virtual controller is paced by the wall
   clock, so its settle time varies by a few ms from run to run (0.424-0.428 s against the 0.425 s
   of `host-sim move`, observed Nov 2026): a shorter period would test that spread, not the recorder.
 

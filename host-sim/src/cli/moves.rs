@@ -13,9 +13,9 @@ pub struct MovesArgs {
     /// Number of moves.
     #[arg(long, default_value_t = 10)]
     pub count: usize,
-    /// Record one point every this many control periods (`RTR`); the recorder's 360 points must
-    /// cover a move and its settling.
-    #[arg(long, default_value_t = 20)]
+    /// Record one point every this many control periods (`RTR`); the recorder's 1 024 points
+    /// must cover a move and its settling (10: 1.02 s).
+    #[arg(long, default_value_t = 10)]
     pub record_rate: u32,
     /// Print one JSON array instead of the table.
     #[arg(long)]

@@ -771,11 +771,12 @@ mod tests {
         let setup =
             "RON 1 0\nSVO 1 1\nDRC 1 1 1 2 1 2 3 1 3 4 1 1 5 1 2 6 1 3 7 1 1 8 1 2\nRTR 1\nDRT 0 4 0\n";
         assert_eq!(send(&mut vc, &format!("{setup}MOV 1 5\nERR?\n")), "0\n");
-        for _ in 0..400 {
+        // The tables full, and a few periods more.
+        for _ in 0..piezo_drive::recorder::DEPTH + 40 {
             vc.period();
         }
         assert_eq!(vc.sil.controller.state(), State::Moving);
-        // #24 once 2 000 bytes of the DRR? reply (eight tables of 360 points) are out.
+        // #24 once 2 000 bytes of the DRR? reply (eight tables of 1 024 points) are out.
         let mut link = Scripted {
             inputs: [(0, b"DRR?\n".to_vec()), (2000, b"\x18ERR?\n".to_vec())].into(),
             written: Vec::new(),
@@ -798,7 +799,7 @@ mod tests {
             drr.lines().find_map(|l| l.strip_prefix("# NDATA = ")).unwrap().trim().parse().unwrap();
         let rows: Vec<&str> = drr[header_end..].lines().collect();
         // Fewer rows than announced, every one whole (eight numbers), the last ended by a bare LF.
-        assert_eq!(ndata, 360);
+        assert_eq!(ndata, piezo_drive::recorder::DEPTH);
         assert!(!rows.is_empty() && rows.len() < ndata, "{}", rows.len());
         for row in &rows {
             let values: Vec<f64> = row.split_whitespace().map(|v| v.parse().unwrap()).collect();
