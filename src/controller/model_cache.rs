@@ -26,7 +26,6 @@
 //! profile has no speed to move at (as without a preload reading).
 
 pub use super::frequency_choice::{FrequencyChoice, FREQ_CANDIDATES};
-use super::table_build::TableBuild;
 use super::{Controller, ControllerConfig};
 use crate::fastmath::{acos_f32, clamp_f32, fx_from_f32};
 use crate::inertia::Orbits;
@@ -278,22 +277,6 @@ pub(super) fn thrust_row(request: &ModelRequest, riding: bool, j: usize) -> [f32
 }
 
 impl ModelTable {
-    /// The expensive part: the frequency chosen first when the request offers several
-    /// ([`ModelRequest::chosen`]), then [`VOLT_POINTS`] model points, the thrust at every grid
-    /// node and [`LOAD_POINTS`] speed roots or, for a carriage whose speed ripples, periodic orbits
-    /// (a few hundred thousand instructions on the Cortex-M4; up to 2.25 million measured in PIL
-    /// for the 1 kg default with the choice, 1.35 million without; more for a carriage that rides
-    /// the foot, whose whole grid comes from orbits), for a lower-priority context. All at once:
-    /// [`TableBuild`] is the same work in slices.
-    pub fn build(request: &ModelRequest) -> Self {
-        let mut build = TableBuild::new(request);
-        loop {
-            if let Some(table) = build.step() {
-                return table;
-            }
-        }
-    }
-
     /// The table from its grid (N, at the grid's nodes), the grid's largest thrust, the stall
     /// force and the speed table of `request` (the one chosen).
     pub(super) fn assemble(

@@ -15,6 +15,24 @@ use crate::fastmath::fx_from_f32;
 use crate::inertia::Orbits;
 use crate::model::ThrustPoint;
 
+impl ModelTable {
+    /// The expensive part: the frequency chosen first when the request offers several
+    /// ([`ModelRequest::chosen`]), then [`VOLT_POINTS`] model points, the thrust at every grid
+    /// node and [`LOAD_POINTS`] speed roots or, for a carriage whose speed ripples, periodic orbits
+    /// (a few hundred thousand instructions on the Cortex-M4; up to 2.25 million measured in PIL
+    /// for the 1 kg default with the choice, 1.35 million without; more for a carriage that rides
+    /// the foot, whose whole grid comes from orbits), for a lower-priority context. All at once:
+    /// [`TableBuild`] is the same work in slices.
+    pub fn build(request: &ModelRequest) -> Self {
+        let mut build = TableBuild::new(request);
+        loop {
+            if let Some(table) = build.step() {
+                return table;
+            }
+        }
+    }
+}
+
 /// What the next slice does.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Stage {

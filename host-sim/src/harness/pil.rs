@@ -206,14 +206,19 @@ impl Target {
     pub(crate) fn tick(&mut self, tick: &Tick) -> Result<Reply> {
         self.to_target.write_all(&pil_wire::encode_tick(tick)).context("writing to the emulated M4")?;
         let mut buf = [0u8; REPLY_BYTES];
-        self.from_target.read_exact(&mut buf).map_err(|e| {
+        self.read_answer(&mut buf)?;
+        Ok(pil_wire::decode_reply(&buf))
+    }
+
+    /// Fills `buf` from the target; when it stops answering, the error carries what QEMU printed.
+    fn read_answer(&mut self, buf: &mut [u8]) -> Result<()> {
+        self.from_target.read_exact(buf).map_err(|e| {
             let mut out = String::new();
             if let Some(mut s) = self.qemu.stdout.take() {
                 let _ = s.read_to_string(&mut out);
             }
             anyhow!("the emulated M4 stopped answering ({e}): {}", out.trim())
-        })?;
-        Ok(pil_wire::decode_reply(&buf))
+        })
     }
 
     /// GCS command bytes (as the UART delivers them) through the target's protocol, every
@@ -227,13 +232,7 @@ impl Target {
             .context("writing to the emulated M4")?;
         self.to_target.write_all(bytes).context("writing to the emulated M4")?;
         let mut buf = [0u8; pil_wire::GCS_REPORT_BYTES];
-        self.from_target.read_exact(&mut buf).map_err(|e| {
-            let mut out = String::new();
-            if let Some(mut s) = self.qemu.stdout.take() {
-                let _ = s.read_to_string(&mut out);
-            }
-            anyhow!("the emulated M4 stopped answering ({e}): {}", out.trim())
-        })?;
+        self.read_answer(&mut buf)?;
         Ok(pil_wire::decode_gcs_report(&buf))
     }
 
