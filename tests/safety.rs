@@ -288,6 +288,28 @@ fn soft_start_ramps_from_rest_to_mid_scale_without_a_step() {
     assert!(s.done());
 }
 
+/// An orderly disable runs the ramp backwards: rest + (word − rest)·k/n for k = n−1 … 0, then
+/// rest, and reports rest only when there (hand values: rest 1000, word 3000, n = 4).
+#[test]
+fn soft_start_ramps_down_to_rest_before_it_reports_rest() {
+    let mut s = SoftStart::new(1000, 4);
+    let mut up = [[3000u16; 2]; 4];
+    s.apply(true, &mut up);
+    assert!(s.done() && !s.at_rest());
+    let mut seen = Vec::new();
+    for _ in 0..5 {
+        let mut one = [[3000u16; 2]; 1];
+        let at_rest = s.ramp_down(&mut one);
+        seen.push((one[0][0], at_rest));
+    }
+    assert_eq!(seen, [(2500, false), (2000, false), (1500, false), (1000, true), (1000, true)]);
+    // No ramp configured: rest at once.
+    let mut none = SoftStart::new(1000, 0);
+    let mut w = [[3000u16; 2]; 2];
+    assert!(none.ramp_down(&mut w));
+    assert_eq!(w, [[1000; 2]; 2]);
+}
+
 #[test]
 fn soft_start_holds_rest_while_disabled_and_starts_over_after() {
     let mut s = SoftStart::new(100, 40);

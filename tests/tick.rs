@@ -1,8 +1,8 @@
 //! The control tick's wiring (`piezo_drive::safety::tick`), the sequence the firmware's TIM7
 //! handler runs, over a simulated board that logs every call: the refill comes before the step,
 //! a late tick feeds no watchdog, an overrun trip and a controller fault drop the enable within
-//! the same tick, parking writes rest words with the enable low, a silent preload ADC becomes an
-//! invalid reading.
+//! the same tick, parking ramps the drive down to rest before the enable drops (a fault cuts at
+//! once), a silent preload ADC becomes an invalid reading.
 
 use piezo_drive::controller::{Controller, FaultCode};
 use piezo_drive::defaults::controller_config;
@@ -217,19 +217,72 @@ fn a_controller_fault_drops_the_enable_in_the_same_tick() {
     assert!(high < low && low < step, "{log:?}");
 }
 
+/// Ticks of the soft start's ramp (400 samples, 20 per tick).
+const RAMP_TICKS: u32 = 400 / 20;
+
 #[test]
-fn parking_writes_rest_words_with_the_enable_low() {
+fn parking_ramps_the_drive_down_to_rest_before_the_enable_drops() {
+    let (mut t, mut b, mut c) = (tick(), LogBoard::new(), controller());
+    for k in 0..30 {
+        run(&mut t, &mut b, &mut c, k, 100);
+    }
+    // The idle controller's quiet output (mid-scale), ramped up in full.
+    let Call::Write { first: [quiet, _], .. } =
+        *b.log.iter().find(|c| matches!(c, Call::Write { .. })).expect("refill")
+    else {
+        unreachable!()
+    };
+    assert!(quiet > REST + 1000, "quiet output {quiet}");
+    b.park = true;
+    let mut last = quiet;
+    let mut k = 30;
+    // While the ramp runs the enable stays high, the halves step down toward rest, and the
+    // tick does not count as parked.
+    for _ in 0..RAMP_TICKS {
+        let log = run(&mut t, &mut b, &mut c, k, 100);
+        let Some(&Call::Write { first: [w, _], .. }) = log.iter().find(|c| matches!(c, Call::Write { .. }))
+        else {
+            panic!("no refill: {log:?}")
+        };
+        assert!(w < last, "tick {k}: {w} not below {last}");
+        assert!(
+            !log.contains(&Call::Enable(false)) && log.contains(&Call::Parked(false)),
+            "tick {k}: {log:?}"
+        );
+        last = w;
+        k += 1;
+    }
+    // A whole half at rest, then the enable drops and the board may store.
+    let log = run(&mut t, &mut b, &mut c, k, 100);
+    assert!(log.iter().any(|c| matches!(c, Call::Write { all_rest: true, .. })), "{log:?}");
+    assert!(log.contains(&Call::Enable(false)) && !log.contains(&Call::Enable(true)), "{log:?}");
+    assert!(log.contains(&Call::Parked(true)));
+    // Unparked: the soft start ramps up again from rest.
+    b.park = false;
+    let log = run(&mut t, &mut b, &mut c, k + 1, 100);
+    assert!(log.contains(&Call::Enable(true)));
+    let Some(&Call::Write { first: [w, _], .. }) = log.iter().find(|c| matches!(c, Call::Write { .. }))
+    else {
+        panic!("no refill")
+    };
+    assert!(w < quiet, "ramps up from rest: {w}");
+}
+
+#[test]
+fn a_fault_while_parking_cuts_at_once() {
     let (mut t, mut b, mut c) = (tick(), LogBoard::new(), controller());
     for k in 0..30 {
         run(&mut t, &mut b, &mut c, k, 100);
     }
     b.park = true;
-    let log = run(&mut t, &mut b, &mut c, 30, 100);
-    assert!(log.contains(&Call::Parked(true)));
-    assert!(!log.contains(&Call::Enable(true)), "{log:?}");
-    let write = b.position(|c| matches!(c, Call::Write { .. })).expect("refill");
-    assert!(matches!(log[write], Call::Write { all_rest: true, .. }), "{log:?}");
-    assert_eq!(log.first(), Some(&Call::Enable(false)), "the enable drops before the refill");
+    run(&mut t, &mut b, &mut c, 30, 100);
+    c.trip_external(FaultCode::EncoderJump);
+    // The faulted step drops the enable in its own tick; the next refill is all rest, enable low
+    // before it, with the ramp-down far from done.
+    run(&mut t, &mut b, &mut c, 31, 100);
+    let log = run(&mut t, &mut b, &mut c, 32, 100);
+    assert_eq!(log.first(), Some(&Call::Enable(false)), "{log:?}");
+    assert!(log.iter().any(|c| matches!(c, Call::Write { all_rest: true, .. })), "{log:?}");
 }
 
 #[test]

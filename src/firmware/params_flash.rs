@@ -56,9 +56,10 @@ fn page_in_bank(page: Page) -> u8 {
 /// OPTVERR) and EOP: all write-1-to-clear.
 const SR_ERRORS: u32 = 0xC3FA;
 const SR_EOP: u32 = 0x1;
-/// Longest wait for the erase (datasheet: 22 ms typical per page) and for parking the drive.
+/// Longest wait for the erase (datasheet: 22 ms typical per page) and for parking the drive (the
+/// tick ramps it down over the soft start's 20 ms before it drops the enable).
 const ERASE_TIMEOUT: Duration = Duration::from_millis(100);
-const PARK_TIMEOUT: Duration = Duration::from_millis(20);
+const PARK_TIMEOUT: Duration = Duration::from_millis(50);
 
 /// The settings to store: a copy taken under the controller's lock; encoded (range check, CRC)
 /// by the flash task, outside it.
@@ -304,7 +305,7 @@ fn controller_idle() -> bool {
         .unwrap_or(false)
 }
 
-/// Parks the drive (enable low, rest words in both halves) and waits until the tick confirms.
+/// Parks the drive (ramped down to rest, then the enable low) and waits until the tick confirms.
 async fn park() -> Result<(), NotStored> {
     PARK_REQUEST.store(true, Ordering::SeqCst);
     let mut waited = Duration::from_ticks(0);

@@ -4,7 +4,8 @@
 //! DAC words and the drive buffer: while the enable is low it holds every sample at the rest word;
 //! once the enable goes high it blends from the rest word to the controller's words over a fixed
 //! number of samples, linearly, and then passes them through unchanged. Every time the enable
-//! drops it starts over.
+//! drops it starts over. An orderly disable ramps down the same way before the enable drops
+//! ([`SoftStart::ramp_down`]); only a fault cuts at once.
 
 /// The blend from the amplifier's rest word to the controller's output.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -39,6 +40,29 @@ impl SoftStart {
             }
             self.done_samples += 1;
         }
+    }
+
+    /// An orderly disable (parking for a flash store, not a fault): the same blend run backwards,
+    /// from the controller's words down to the rest word, one sample at a time; true once the
+    /// drive has reached rest (all of `samples` at the rest word), when the enable may drop
+    /// without a step. A fault does not wait for it: [`Self::apply`] with the enable low.
+    pub fn ramp_down(&mut self, samples: &mut [[u16; 2]]) -> bool {
+        if self.ramp_samples == 0 {
+            self.apply(false, samples);
+            return true;
+        }
+        for s in samples.iter_mut() {
+            self.done_samples = self.done_samples.saturating_sub(1);
+            for w in s.iter_mut() {
+                *w = blend(self.rest, *w, self.done_samples, self.ramp_samples);
+            }
+        }
+        self.done_samples == 0
+    }
+
+    /// The drive is at the rest word (the enable may drop without a step).
+    pub fn at_rest(&self) -> bool {
+        self.done_samples == 0
     }
 
     /// The ramp is over: samples pass unchanged.

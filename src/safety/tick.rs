@@ -3,7 +3,7 @@
 //!
 //! 1. **Refill first**: the samples the previous step computed go into the ring half the DMA is
 //!    not reading, through the soft start; the enable is set for them (low at once when the
-//!    controller, a latched overrun or parking wants it low).
+//!    controller or a latched overrun wants it low; parking ramps the drive down to rest first).
 //! 2. **Lateness**: the overrun supervisor judges the tick (deadline, missed periods, the DMA
 //!    already in the half just written); a trip drops the enable at once, latches the
 //!    controller's `Overrun` fault and records it.
@@ -42,7 +42,7 @@ pub trait TickBoard {
     fn set_enable(&mut self, on: bool);
     /// The flash store asks for the drive parked (enable low, rest words).
     fn park_requested(&mut self) -> bool;
-    /// This tick ran parked (or not).
+    /// This tick ran parked, the drive at rest and the enable low (or not).
     fn parked(&mut self, parked: bool);
     /// Lateness figures for the statistics (every tick).
     fn note_timing(&mut self, timing: &TickTiming, verdict: &Verdict);
@@ -90,19 +90,29 @@ impl Tick {
     pub fn run(&mut self, board: &mut impl TickBoard, mut controller: Option<&mut Controller>, entry: u32) {
         let timing = self.overrun.begin(entry);
 
-        // 1. Refill first, with what the last step computed.
+        // 1. Refill first, with what the last step computed. A fault (the controller's enable
+        // low, a latched overrun) cuts the enable at once; parking alone ramps the drive down to
+        // the rest word first (a whole half at rest), then drops it.
         let parked = board.park_requested();
-        let enable = self.overrun.enable(self.pending_enable, parked);
-        if !enable {
+        let wanted = self.overrun.enable(self.pending_enable, parked);
+        let orderly = !wanted && parked && self.pending_enable && !self.overrun.latched();
+        if !wanted && !orderly {
             board.set_enable(false);
         }
         let half = 1 - (board.dma_half() & 1);
-        self.soft.apply(enable, &mut self.pending);
+        let enable = if orderly {
+            let was_at_rest = self.soft.at_rest();
+            self.soft.ramp_down(&mut self.pending);
+            !was_at_rest
+        } else {
+            self.soft.apply(wanted, &mut self.pending);
+            wanted
+        };
         board.write_half(half, &self.pending);
         board.set_enable(enable);
         let refilled = board.timebase();
         let verdict = self.overrun.judge(&timing, refilled, board.dma_half() == half);
-        board.parked(parked);
+        board.parked(parked && !enable);
 
         // 2. Lateness: the bucket's verdict, and its latched fault.
         board.note_timing(&timing, &verdict);
