@@ -27,6 +27,7 @@ enum Call {
     RecordOverrun,
     Encoder,
     Preload,
+    Index(bool),
     AfterStep,
     Feed,
 }
@@ -101,6 +102,9 @@ impl TickBoard for LogBoard {
     }
     fn index_latch(&mut self) -> (u16, u16) {
         (0, 0)
+    }
+    fn index_listening(&mut self, on: bool) {
+        self.log.push(Call::Index(on));
     }
     fn after_step(&mut self, _controller: Option<&Controller>) {
         self.log.push(Call::AfterStep);
@@ -307,4 +311,21 @@ fn a_silent_preload_adc_becomes_an_invalid_reading_after_the_stale_limit() {
     b.adc_alive = true;
     run(&mut t, &mut b, &mut c, k + 1, 100);
     assert!(c.preload_n().is_some());
+}
+
+#[test]
+fn the_index_interrupt_listens_only_while_referencing() {
+    let (mut t, mut b, mut c) = (tick(), LogBoard::new(), controller());
+    for k in 0..30 {
+        assert!(run(&mut t, &mut b, &mut c, k, 100).contains(&Call::Index(false)), "tick {k}");
+    }
+    c.set_servo(true).expect("servo on");
+    c.start_referencing().expect("referencing starts");
+    let log = run(&mut t, &mut b, &mut c, 30, 100);
+    // Listening before the step reads the latch.
+    let on = b.position(|c| *c == Call::Index(true)).expect("listening");
+    assert!(on < b.position(|c| *c == Call::Encoder).expect("step"), "{log:?}");
+    c.stop();
+    run(&mut t, &mut b, &mut c, 31, 100);
+    assert!(run(&mut t, &mut b, &mut c, 32, 100).contains(&Call::Index(false)));
 }

@@ -190,6 +190,8 @@ pub struct TickHw {
     pub amp_enable: Output<'static>,
     /// DWT cycle count at the tick's entry, for the step's cost.
     entry_cycles: u32,
+    /// The index edge interrupt is enabled.
+    index_on: bool,
 }
 
 impl TickBoard for TickHw {
@@ -237,6 +239,12 @@ impl TickBoard for TickHw {
     fn index_latch(&mut self) -> (u16, u16) {
         let packed = INDEX_LATCH.load(Ordering::Relaxed);
         ((packed >> 16) as u16, packed as u16)
+    }
+    fn index_listening(&mut self, on: bool) {
+        if on != self.index_on {
+            self.index_on = on;
+            super::encoder::listen_to_index(on);
+        }
     }
     fn after_step(&mut self, controller: Option<&Controller>) {
         if let Some(c) = controller {
@@ -306,7 +314,7 @@ pub fn start(
 
     let _ = TICK.lock(|tick| {
         let ctx = tick.insert(TickCtx {
-            hw: TickHw { drive, encoder, amp_enable, entry_cycles: 0 },
+            hw: TickHw { drive, encoder, amp_enable, entry_cycles: 0, index_on: false },
             tick: Tick::new(
                 OverrunSupervisor::new(
                     DeadlineMonitor::new(FIRST_DUE_COUNTS, TICK_COUNTS, REFILL_DEADLINE_COUNTS),

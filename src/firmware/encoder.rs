@@ -49,7 +49,16 @@ impl Encoder {
     }
 }
 
-/// PB10 as a pulled-down input on EXTI line 10, rising edge, interrupt at priority 0.
+/// Unmasks (or masks) the index edge interrupt; an edge pending from before is dropped first.
+pub fn listen_to_index(on: bool) {
+    if on {
+        pac::EXTI.pr(0).write(|w| w.set_line(INDEX_LINE, true));
+    }
+    pac::EXTI.imr(0).modify(|w| w.set_line(INDEX_LINE, on));
+}
+
+/// PB10 as a pulled-down input on EXTI line 10, rising edge, interrupt at priority 0 (masked
+/// until the controller references).
 pub fn start_index(pin: Peri<'static, PB10>) {
     let input = Input::new(pin, Pull::Down);
     // The pin stays configured for the life of the firmware.
@@ -58,7 +67,8 @@ pub fn start_index(pin: Peri<'static, PB10>) {
     pac::EXTI.rtsr(0).modify(|w| w.set_line(INDEX_LINE, true));
     pac::EXTI.ftsr(0).modify(|w| w.set_line(INDEX_LINE, false));
     pac::EXTI.pr(0).write(|w| w.set_line(INDEX_LINE, true));
-    pac::EXTI.imr(0).modify(|w| w.set_line(INDEX_LINE, true));
+    // Masked until the controller references (the tick unmasks it: `listen_to_index`).
+    pac::EXTI.imr(0).modify(|w| w.set_line(INDEX_LINE, false));
     let irq = interrupt::EXTI15_10;
     irq.set_priority(Priority::P0);
     // SAFETY: the handler reads a timer count and writes an atomic.

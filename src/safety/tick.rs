@@ -9,7 +9,8 @@
 //!    controller's `Overrun` fault and records it.
 //! 3. **Step**: encoder count, preload word (an invalid word once the ADC has gone quiet for
 //!    [`PRELOAD_STALE_TICKS`]), index latch → `Controller::step`; its samples wait for the next
-//!    tick; a dropped enable in its outputs drops the pin at once.
+//!    tick; a dropped enable in its outputs drops the pin at once. The index interrupt is
+//!    enabled only while the controller references.
 //! 4. **Watchdogs**: fed only by a tick that was on time.
 //!
 //! The firmware's handler (`src/firmware/control.rs`) only binds the registers to
@@ -53,6 +54,8 @@ pub trait TickBoard {
     fn preload_sample(&mut self) -> (u16, u16);
     /// The index latch: (sequence number of the last edge, count at it).
     fn index_latch(&mut self) -> (u16, u16);
+    /// Whether the index edge interrupt is enabled (called every tick; act on changes).
+    fn index_listening(&mut self, on: bool);
     /// After the step: the data recorder's point and the step's cost.
     fn after_step(&mut self, controller: Option<&Controller>);
     fn feed_watchdogs(&mut self);
@@ -137,7 +140,10 @@ impl Tick {
             self.overrun.controller_fault_active(c.fault().is_some());
         }
 
-        // 3. The step, for the next tick's refill.
+        // 3. The step, for the next tick's refill. The index interrupt listens only while the
+        // controller searches the reference (as the commands left it): a noisy index line at
+        // any other time would take the CPU from the tick at a higher priority.
+        board.index_listening(controller.as_deref().is_some_and(Controller::referencing));
         let index_raw = self.index_edge(board.index_latch());
         let preload_word = self.fresh_preload_word(board.preload_sample());
         #[allow(clippy::needless_update)]
