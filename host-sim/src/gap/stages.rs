@@ -4,7 +4,7 @@
 //! re-tested), test the accepted effects' signatures, demote those that fail to partial
 //! candidates, and build the report.
 
-use super::base::{fit_anchored, wants_contact, CANDIDATE_ANCHORS, MAX_ANCHORS};
+use super::base::{fit_anchored, CANDIDATE_ANCHORS, MAX_ANCHORS};
 use super::fit::{self, fit as lm_fit, Data, Fit, Model, BASE_PARAMS};
 use super::{
     all_rows, axis_structure, base_calibration, base_starts, candidate_starts, clears_signature, cv_rms, dof,
@@ -111,11 +111,9 @@ pub(super) fn identifiable_library(
     base: &Params,
     data: &Data,
 ) -> (Vec<Effect>, Vec<String>) {
-    // The contact model has the file's carriage: `slider_inertia` is in the base already.
-    let library: Vec<Effect> = library
-        .into_iter()
-        .filter(|e| !(base.effects.is_active(*e) || (wants_contact(base) && *e == Effect::SliderInertia)))
-        .collect();
+    // On a contact base `slider_inertia` is a carriage of another mass than the file's (the
+    // contact model carries the file's): a payload nobody told the file about.
+    let library: Vec<Effect> = library.into_iter().filter(|e| !base.effects.is_active(*e)).collect();
     let levels = structure(data, &vec![0.0; data.len()], 1.0);
     let varied = |axis: Axis| levels.iter().any(|&(a, k, _)| a == axis && k >= 2);
     let (library, unidentifiable): (Vec<Effect>, Vec<Effect>) =
