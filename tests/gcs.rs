@@ -447,6 +447,27 @@ fn velocity_acceleration_deceleration() {
     ]);
 }
 
+/// `VEL`/`ACC`/`DEC` set their rows as `SPA` does: the nearest f32 of the value in nm/s (the
+/// f32 of the value in mm/s times 1e6 in f32 is one step off for these: 578239.9375 for
+/// 578239.9, which `SPA?` shows as 0.5782399).
+#[test]
+fn motion_limits_set_the_same_value_as_spa() {
+    Rig::new().transcript(&[
+        // 578239.875 nm/s, 14804.900390625 nm/s², 795126976 nm/s² to nine digits.
+        (b"SPA 1 0xA 0.5782399 1 0xB 0.0148049 1 0xC 795.127\n", b""),
+        (b"SPA? 1 0xA 1 0xB 1 0xC\n", b"1 0xA=0.57823986 \n1 0xB=0.014804901 \n1 0xC=795.12695\n"),
+        (b"SPA 1 0xA 1 1 0xB 1 1 0xC 1\n", b""),
+        (b"VEL 1 0.5782399\n", b""),
+        (b"ACC 1 0.0148049\n", b""),
+        (b"DEC 1 795.127\n", b""),
+        (b"SPA? 1 0xA 1 0xB 1 0xC\n", b"1 0xA=0.57823986 \n1 0xB=0.014804901 \n1 0xC=795.12695\n"),
+        // The PI-named queries show about seven digits.
+        (b"VEL?\n", b"1=0.5782399\n"),
+        (b"DEC?\n", b"1=795.127\n"),
+        (b"ERR?\n", b"0\n"),
+    ]);
+}
+
 #[test]
 fn parameters_spa_hpa_wpa() {
     let mut rig = Rig::new();
