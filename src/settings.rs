@@ -1,7 +1,7 @@
 //! Every controller setting, declared once: [`SETTINGS`], one row per setting with its GCS id,
 //! its [`ControllerConfig`] field (the name), GCS unit, type, range, default, whether `WPA`
-//! stores it, whether `SPA` may set it, and its description. Everything else is derived from
-//! this table:
+//! stores it, whether `SPA` may set it, its description and what a change of it invalidates.
+//! Everything else is derived from this table:
 //!
 //! - `SPA`/`SPA?`/`HPA?` ([`crate::gcs`], through [`crate::gcs::params`]): the rows in table
 //!   order, `HPA?` text `description (unit)`;
@@ -9,7 +9,9 @@
 //!   few rules that tie two settings together);
 //! - the flash record ([`crate::storage`]): the stored rows in table order, each in its type's
 //!   width;
-//! - the defaults ([`crate::defaults`]): each row's fixed default, or the hardware's value.
+//! - the defaults ([`crate::defaults`]): each row's fixed default, or the hardware's value;
+//! - what a change forgets ([`invalidated`], used by `ConfigChange::prepare`): each row's
+//!   [`Invalidates`] (the learned load, the learned mass).
 //!
 //! The struct [`ControllerConfig`] is where the controller reads the values; a setting is a
 //! field there and a row here, nothing else.
@@ -137,6 +139,28 @@ pub enum Keep {
     ReadOnly,
 }
 
+/// What the controller has learned that a change of a setting makes it forget (a set). Every
+/// accepted change also drops the model table (it is built anew for the new settings).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Invalidates(u8);
+
+impl Invalidates {
+    pub const NOTHING: Invalidates = Invalidates(0);
+    /// The load observer's learned load: it was the old motor model's error.
+    pub const LEARNED_LOAD: Invalidates = Invalidates(1);
+    /// The mass estimator's learned mass: what the speed-ups measured no longer holds.
+    pub const LEARNED_MASS: Invalidates = Invalidates(2);
+
+    /// Both sets together.
+    pub const fn and(self, other: Invalidates) -> Invalidates {
+        Invalidates(self.0 | other.0)
+    }
+    /// Whether everything in `other` is in this set.
+    pub const fn contains(self, other: Invalidates) -> bool {
+        self.0 & other.0 == other.0
+    }
+}
+
 /// One setting's declaration (a row of [`SETTINGS`]).
 pub struct Setting {
     /// GCS parameter id (`SPA 1 <id> <value>`).
@@ -158,6 +182,8 @@ pub struct Setting {
     pub range: Range,
     pub default: DefaultValue,
     pub keep: Keep,
+    /// What a change of it makes the controller forget ([`invalidated`]).
+    pub invalidates: Invalidates,
     pub stored: bool,
     pub read_only: bool,
     /// The field's value.
@@ -249,8 +275,10 @@ impl Field for ReferenceSignal {
     }
 }
 
-/// One row: `id, group, field: type = default; unit, scale, range, keep, description`; the
-/// default is a value of the field's type or `hardware("where it comes from")`. `@check c;` and
+/// One row: `id, group, field: type = default; unit, scale, range, keep, description`, and
+/// `, invalidates WHAT | WHAT` when a change of it makes the controller forget something
+/// ([`Invalidates`]); the default is a value of the field's type or
+/// `hardware("where it comes from")`. `@check c;` and
 /// a row: whether `c`'s field is in the row's range. A read-only row that is no field of its
 /// own but follows from others: `id, group, name: type = derived(|c| value, "from what");
 /// unit, scale, range, ReadOnly, description`.
@@ -273,6 +301,7 @@ macro_rules! setting {
             range: $range,
             default: DefaultValue::Hardware($what),
             keep: Keep::ReadOnly,
+            invalidates: Invalidates::NOTHING,
             stored: false,
             read_only: true,
             get: |c: &ControllerConfig| {
@@ -298,7 +327,8 @@ macro_rules! setting {
             DefaultValue::Fixed(|c: &mut ControllerConfig| c.$($f).+ = $default); $($rest)*)
     };
     (@row $id:literal, $group:literal, $($f:ident).+ : $t:ty, $default:expr;
-     $unit:literal, $scale:literal, $range:expr, $keep:ident, $desc:literal) => {
+     $unit:literal, $scale:literal, $range:expr, $keep:ident, $desc:literal
+     $(, invalidates $($inv:ident)|+)?) => {
         Setting {
             id: $id,
             name: stringify!($($f).+),
@@ -311,6 +341,7 @@ macro_rules! setting {
             range: $range,
             default: $default,
             keep: Keep::$keep,
+            invalidates: Invalidates::NOTHING $($(.and(Invalidates::$inv))+)?,
             stored: matches!(Keep::$keep, Keep::Stored),
             read_only: matches!(Keep::$keep, Keep::ReadOnly),
             get: |c: &ControllerConfig| Field::to_value(c.$($f).+),
@@ -348,7 +379,8 @@ settings! {
     pub static SETTINGS;
 
     // id, group, field: type = default; GCS unit, field units per GCS unit (f32 fields; an i64 nm
-    // field is always shown in mm), range in the field's unit, keep, description
+    // field is always shown in mm), range in the field's unit, keep, description[, invalidates
+    // what a change of it forgets]
     // 400 /s: measured on the sweep at 100, 200, 300, 400 and 600 /s, the peak following errors
     // fall up to 400 /s (by 1.5–2× against unknown loads, the light carriages' 10 µm overshoot
     // 2.4–2.5× less); at 600 /s the 50 kg carriage's 1 µm step rings (14 ms, was 7). The loop's
@@ -434,22 +466,23 @@ settings! {
     // Appended last of the stored rows: a version-2 record is this record without it.
     (0x101A, "Motor", moving_mass_kg: f32 = hardware("the motor table's moving mass");
         "kg", 1.0, Range::Float { lo: 1e-3, hi: 1e3, lo_open: false }, Stored,
-        "Moving mass of the carriage and payload"),
+        "Moving mass of the carriage and payload", invalidates LEARNED_MASS),
     // The motor as calibrated (`host-sim calibrate` uploads the model-gap workflow's fit);
-    // appended after the moving mass: a version-3 record is this record without them.
+    // appended after the moving mass: a version-3 record is this record without them. What the
+    // load observer learned was the old model's error, and the speed-ups were timed against it.
     (0x101B, "Motor", mu_dynamic: f32 = hardware("the motor table's friction coefficient");
         "", 1.0, Range::Float { lo: 0.0, hi: 2.0, lo_open: true }, Stored,
-        "Sliding friction coefficient of the drive foot"),
+        "Sliding friction coefficient of the drive foot", invalidates LEARNED_LOAD | LEARNED_MASS),
     (0x101C, "Motor", tangential_scale: f32 = hardware("the motor table's tangential scale");
-        "", 1.0, POSITIVE, Stored, "Tangential scale of the stator (within 4x of the table's)"),
+        "", 1.0, POSITIVE, Stored, "Tangential scale of the stator (within 4x of the table's)", invalidates LEARNED_LOAD | LEARNED_MASS),
     (0x101D, "Motor", normal_force_ratio: f32 = hardware("the motor table's normal force ratio");
-        "", 1.0, POSITIVE, Stored, "Normal force ratio of the stator (within 4x of the table's)"),
+        "", 1.0, POSITIVE, Stored, "Normal force ratio of the stator (within 4x of the table's)", invalidates LEARNED_LOAD | LEARNED_MASS),
     (0x101E, "Motor", rail_coulomb_n: f32 = 0.0;
         "N", 1.0, Range::Float { lo: 0.0, hi: 100.0, lo_open: false }, Stored,
-        "Guide Coulomb friction of the carriage"),
+        "Guide Coulomb friction of the carriage", invalidates LEARNED_LOAD | LEARNED_MASS),
     (0x101F, "Motor", rail_viscous_n_s_per_m: f32 = 0.0;
         "N per m/s", 1.0, Range::Float { lo: 0.0, hi: 10_000.0, lo_open: false }, Stored,
-        "Guide viscous friction of the carriage"),
+        "Guide viscous friction of the carriage", invalidates LEARNED_LOAD | LEARNED_MASS),
     (0x1020, "Hardware", encoder_nm_per_count: u32 = hardware("the encoder's resolution");
         "nm per count", 1.0, Range::Int { lo: 1, hi: 1_000_000 }, ReadOnly, "Encoder resolution"),
     (0x1021, "Hardware", loop_hz: u32 = hardware("the DAC rate over 20 samples per period");
@@ -473,6 +506,15 @@ settings! {
 /// The setting with this GCS id.
 pub fn find(id: i64) -> Option<&'static Setting> {
     SETTINGS.iter().find(|s| i64::from(s.id) == id)
+}
+
+/// What changing the settings `old` into `new` makes the controller forget: what the changed
+/// rows invalidate, together.
+pub fn invalidated(old: &ControllerConfig, new: &ControllerConfig) -> Invalidates {
+    SETTINGS
+        .iter()
+        .filter(|s| s.invalidates != Invalidates::NOTHING && (s.get)(old) != (s.get)(new))
+        .fold(Invalidates::NOTHING, |all, s| all.and(s.invalidates))
 }
 
 /// Sets every setting with a fixed default to it (the hardware's are the caller's).
