@@ -16,8 +16,10 @@
 //! The struct [`ControllerConfig`] is where the controller reads the values; a setting is a
 //! field there and a row here, nothing else.
 //!
-//! Adding, removing or reordering a stored row, or changing its type, changes the flash record:
-//! bump [`crate::storage::VERSION`] and keep a decoder for the previous layout (see `storage`).
+//! Adding a stored row changes the flash record: the row says `Stored since N` with N one more
+//! than the present [`crate::storage::VERSION`], which follows (records of older formats are
+//! read without it). Removing or reordering a stored row, or changing its type, needs a decoder
+//! for the previous layout (see `storage`).
 
 use crate::controller::{ControllerConfig, ReferenceSignal, MAX_TRAVEL_NM};
 
@@ -182,6 +184,9 @@ pub struct Setting {
     pub range: Range,
     pub default: DefaultValue,
     pub keep: Keep,
+    /// A stored row: the record format ([`crate::storage::VERSION`]) that first held it; a
+    /// record of an older format is read without it (its value then comes from the defaults).
+    pub since: u16,
     /// What a change of it makes the controller forget ([`invalidated`]).
     pub invalidates: Invalidates,
     pub stored: bool,
@@ -275,14 +280,21 @@ impl Field for ReferenceSignal {
     }
 }
 
-/// One row: `id, group, field: type = default; unit, scale, range, keep, description`, and
-/// `, invalidates WHAT | WHAT` when a change of it makes the controller forget something
+/// One row: `id, group, field: type = default; unit, scale, range, keep, description`; a stored
+/// row added after the first record format from the table (2) says since when: `Stored since 6`;
+/// and `, invalidates WHAT | WHAT` when a change of it makes the controller forget something
 /// ([`Invalidates`]); the default is a value of the field's type or
 /// `hardware("where it comes from")`. `@check c;` and
 /// a row: whether `c`'s field is in the row's range. A read-only row that is no field of its
 /// own but follows from others: `id, group, name: type = derived(|c| value, "from what");
 /// unit, scale, range, ReadOnly, description`.
 macro_rules! setting {
+    (@since) => {
+        crate::storage::FIRST_TABLE_VERSION
+    };
+    (@since $since:literal) => {
+        $since
+    };
     (@check $c:ident; $id:literal, $group:literal, $name:ident : $t:ty = derived($get:expr, $what:literal);
      $($rest:tt)*) => {
         true
@@ -301,6 +313,7 @@ macro_rules! setting {
             range: $range,
             default: DefaultValue::Hardware($what),
             keep: Keep::ReadOnly,
+            since: crate::storage::FIRST_TABLE_VERSION,
             invalidates: Invalidates::NOTHING,
             stored: false,
             read_only: true,
@@ -327,7 +340,7 @@ macro_rules! setting {
             DefaultValue::Fixed(|c: &mut ControllerConfig| c.$($f).+ = $default); $($rest)*)
     };
     (@row $id:literal, $group:literal, $($f:ident).+ : $t:ty, $default:expr;
-     $unit:literal, $scale:literal, $range:expr, $keep:ident, $desc:literal
+     $unit:literal, $scale:literal, $range:expr, $keep:ident $(since $since:literal)?, $desc:literal
      $(, invalidates $($inv:ident)|+)?) => {
         Setting {
             id: $id,
@@ -341,6 +354,7 @@ macro_rules! setting {
             range: $range,
             default: $default,
             keep: Keep::$keep,
+            since: setting!(@since $($since)?),
             invalidates: Invalidates::NOTHING $($(.and(Invalidates::$inv))+)?,
             stored: matches!(Keep::$keep, Keep::Stored),
             read_only: matches!(Keep::$keep, Keep::ReadOnly),
@@ -379,8 +393,8 @@ settings! {
     pub static SETTINGS;
 
     // id, group, field: type = default; GCS unit, field units per GCS unit (f32 fields; an i64 nm
-    // field is always shown in mm), range in the field's unit, keep, description[, invalidates
-    // what a change of it forgets]
+    // field is always shown in mm), range in the field's unit, keep [since the record format
+    // that first held it], description [, invalidates what a change of it forgets]
     // 400 /s: measured on the sweep at 100, 200, 300, 400 and 600 /s, the peak following errors
     // fall up to 400 /s (by 1.5–2× against unknown loads, the light carriages' 10 µm overshoot
     // 2.4–2.5× less); at 600 /s the 50 kg carriage's 1 µm step rings (14 ms, was 7). The loop's
@@ -463,36 +477,36 @@ settings! {
         "V", 1.0, POSITIVE, Stored, "Drive amplitude of the reference search"),
     (0x1019, "Referencing", reference_timeout_s: f32 = 200.0;
         "s", 1.0, POSITIVE, Stored, "Reference search timeout"),
-    // Appended last of the stored rows: a version-2 record is this record without it.
     (0x101A, "Motor", moving_mass_kg: f32 = hardware("the motor table's moving mass");
-        "kg", 1.0, Range::Float { lo: 1e-3, hi: 1e3, lo_open: false }, Stored,
+        "kg", 1.0, Range::Float { lo: 1e-3, hi: 1e3, lo_open: false }, Stored since 3,
         "Moving mass of the carriage and payload", invalidates LEARNED_MASS),
-    // The motor as calibrated (`host-sim calibrate` uploads the model-gap workflow's fit);
-    // appended after the moving mass: a version-3 record is this record without them. What the
-    // load observer learned was the old model's error, and the speed-ups were timed against it.
+    // The motor as calibrated (`host-sim calibrate` uploads the model-gap workflow's fit). What
+    // the load observer learned was the old model's error, and the speed-ups were timed against
+    // it.
     (0x101B, "Motor", mu_dynamic: f32 = hardware("the motor table's friction coefficient");
-        "", 1.0, Range::Float { lo: 0.0, hi: 2.0, lo_open: true }, Stored,
+        "", 1.0, Range::Float { lo: 0.0, hi: 2.0, lo_open: true }, Stored since 4,
         "Sliding friction coefficient of the drive foot", invalidates LEARNED_LOAD | LEARNED_MASS),
     (0x101C, "Motor", tangential_scale: f32 = hardware("the motor table's tangential scale");
-        "", 1.0, POSITIVE, Stored, "Tangential scale of the stator (within 4x of the table's)", invalidates LEARNED_LOAD | LEARNED_MASS),
+        "", 1.0, POSITIVE, Stored since 4,
+        "Tangential scale of the stator (within 4x of the table's)", invalidates LEARNED_LOAD | LEARNED_MASS),
     (0x101D, "Motor", normal_force_ratio: f32 = hardware("the motor table's normal force ratio");
-        "", 1.0, POSITIVE, Stored, "Normal force ratio of the stator (within 4x of the table's)", invalidates LEARNED_LOAD | LEARNED_MASS),
+        "", 1.0, POSITIVE, Stored since 4,
+        "Normal force ratio of the stator (within 4x of the table's)", invalidates LEARNED_LOAD | LEARNED_MASS),
     (0x101E, "Motor", rail_coulomb_n: f32 = 0.0;
-        "N", 1.0, Range::Float { lo: 0.0, hi: 100.0, lo_open: false }, Stored,
+        "N", 1.0, Range::Float { lo: 0.0, hi: 100.0, lo_open: false }, Stored since 4,
         "Guide Coulomb friction of the carriage", invalidates LEARNED_LOAD | LEARNED_MASS),
     (0x101F, "Motor", rail_viscous_n_s_per_m: f32 = 0.0;
-        "N per m/s", 1.0, Range::Float { lo: 0.0, hi: 10_000.0, lo_open: false }, Stored,
+        "N per m/s", 1.0, Range::Float { lo: 0.0, hi: 10_000.0, lo_open: false }, Stored since 4,
         "Guide viscous friction of the carriage", invalidates LEARNED_LOAD | LEARNED_MASS),
     (0x1020, "Hardware", encoder_nm_per_count: u32 = hardware("the encoder's resolution");
         "nm per count", 1.0, Range::Int { lo: 1, hi: 1_000_000 }, ReadOnly, "Encoder resolution"),
     (0x1021, "Hardware", loop_hz: u32 = hardware("the DAC rate over 20 samples per period");
         "Hz", 1.0, Range::Int { lo: 1, hi: u32::MAX as i64 }, ReadOnly, "Control loop rate"),
-    // The last stored row (format 5): a version-4 record is this record without it. The
-    // controller chooses the drive frequency from here up to 0x1001, where its model (with the
+    // The controller chooses the drive frequency from here up to 0x1001, where its model (with the
     // moving mass) gives the highest speed against the load it expects; at or above 0x1001 the
     // drive frequency is fixed at 0x1001.
     (0x1022, "Drive", drive_freq_min_hz: f32 = hardware("the motor table's lowest frequency where eq. 7 holds");
-        "Hz", 1.0, POSITIVE, Stored, "Lowest drive frequency the controller chooses"),
+        "Hz", 1.0, POSITIVE, Stored since 5, "Lowest drive frequency the controller chooses"),
     // PI's SERVO_UPDATE_TIME: PIPython's data recorder tools read it (`RTR` counts these).
     (0x0E000200, "Hardware",
         servo_update_time_s: f32 = derived(|c| 1.0 / c.loop_hz.max(1) as f32, "one period of the control loop");
