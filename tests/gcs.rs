@@ -623,6 +623,33 @@ fn extensions_preload_drive_fault_thrust_and_timing() {
     rig.transcript(&[(b"XPF?\n", b""), (b"ERR?\n", b"505\n"), (b"XTM?\n", b""), (b"ERR?\n", b"505\n")]);
 }
 
+/// `SVO 1 1` after a fault checks the preload with the controller's one check before clearing
+/// the fault: outside the window 1024, unreadable 505, and the fault stays.
+#[test]
+fn servo_on_after_a_fault_needs_the_preload_in_its_window() {
+    let mut rig = Rig::new();
+    rig.ready();
+    rig.encoder = rig.encoder.wrapping_add(1000);
+    rig.steps(1, Inputs::default());
+    rig.transcript(&[
+        (b"ERR?\n", b"1024\n"),
+        // The window's top below the 16 N measured.
+        (b"SPA 1 0x1010 10\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"SVO 1 1\n", b""),
+        (b"ERR?\n", b"1024\n"),
+        (b"XFT?\n", b"1=5 encoder jump\n"),
+        (b"SVO?\n", b"1=0\n"),
+        (b"SPA 1 0x1010 30\n", b""),
+    ]);
+    for _ in 0..3 {
+        rig.ctl.step(&Inputs { encoder_raw: rig.encoder, preload_word: 4095, ..Default::default() });
+    }
+    rig.transcript(&[(b"SVO 1 1\n", b""), (b"ERR?\n", b"505\n"), (b"XFT?\n", b"1=5 encoder jump\n")]);
+    rig.steps(3, Inputs::default());
+    rig.transcript(&[(b"SVO 1 1\n", b""), (b"ERR?\n", b"0\n"), (b"XFT?\n", b"1=0 no fault\n")]);
+}
+
 #[test]
 fn open_loop_stepping() {
     let mut rig = Rig::new();

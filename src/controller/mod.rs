@@ -388,7 +388,10 @@ impl Controller {
         self.state() == State::Holding && self.motion.on_target_s() >= self.cfg.settle_time_s
     }
 
-    fn check_preload(&self) -> Result<f32, CommandError> {
+    /// The measured preload (N) if it is read and within the window: the one check, for
+    /// servo on, moves, referencing, open-loop runs, the supervisor and the protocol's `SVO`
+    /// after a fault.
+    pub fn check_preload(&self) -> Result<f32, CommandError> {
         let f = self.preload_n().ok_or(CommandError::PreloadInvalid)?;
         if f < self.cfg.preload_min_n || f > self.cfg.preload_max_n {
             return Err(CommandError::PreloadOutOfWindow);
