@@ -3,7 +3,7 @@
 
 use super::open_loop::OpenLoopRun;
 use super::referencing::ReferenceSearch;
-use super::{validate_settings, Activity, CommandError, Controller, ControllerConfig, Mode, State};
+use super::{validate_change, Activity, CommandError, Controller, ControllerConfig, Mode, State};
 use crate::model::PerVolt;
 use crate::settings::Invalidates;
 
@@ -258,16 +258,8 @@ impl ConfigChange {
         generation: u32,
         cfg: ControllerConfig,
     ) -> Result<Self, CommandError> {
-        let c = current;
-        if cfg.loop_hz != c.loop_hz
-            || cfg.dac != c.dac
-            || cfg.encoder_nm_per_count != c.encoder_nm_per_count
-            || cfg.motor != c.motor
-        {
-            return Err(CommandError::InvalidValue);
-        }
-        validate_settings(&cfg)?;
-        let forgets = crate::settings::invalidated(c, &cfg);
+        validate_change(current, &cfg)?;
+        let forgets = crate::settings::invalidated(current, &cfg);
         Ok(ConfigChange {
             per_volt: cfg.per_volt(),
             fine_nm_per_v: cfg.fine_nm_per_v(),

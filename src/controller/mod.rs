@@ -36,7 +36,7 @@ mod supervision;
 mod supervisor;
 pub mod table_build;
 pub use commands::ConfigChange;
-pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
+pub use config::{validate_change, validate_settings, ControllerConfig, MAX_TRAVEL_NM};
 use feedback::Feedback;
 use fine::{FineMode, FineStep};
 use frequency_policy::FrequencyPolicy;

@@ -10,7 +10,7 @@ use super::framing::Out;
 use super::num::parse_int;
 use super::snapshot::Snapshot;
 use super::{error, params, Gcs};
-use crate::controller::{validate_settings, CommandError, ControllerConfig, State};
+use crate::controller::{validate_change, ControllerConfig, State};
 
 impl Gcs {
     fn spa(&mut self, args: &[&[u8]], cfg: &mut ControllerConfig) -> GcsResult {
@@ -35,7 +35,7 @@ impl Gcs {
                 return Err(error::PARAM_OUT_OF_RANGE);
             }
         }
-        settable(cfg, &new).map_err(|_| error::PARAM_OUT_OF_RANGE)?;
+        validate_change(cfg, &new).map_err(|_| error::PARAM_OUT_OF_RANGE)?;
         *cfg = new;
         Ok(())
     }
@@ -142,20 +142,6 @@ pub(super) fn dec_query(gcs: &mut Gcs, c: Query) -> GcsResult {
     motion_limit_query(gcs, DEC_ROW, c)
 }
 
-/// Whether the controller takes `new` in place of `old` (as `Controller::set_config` checks
-/// them): the settings in range together, and what the hardware fixes (loop and DAC rates, DAC
-/// range, encoder resolution, motor table) unchanged.
-fn settable(old: &ControllerConfig, new: &ControllerConfig) -> Result<(), CommandError> {
-    if new.loop_hz != old.loop_hz
-        || new.dac != old.dac
-        || new.encoder_nm_per_count != old.encoder_nm_per_count
-        || new.motor != old.motor
-    {
-        return Err(CommandError::InvalidValue);
-    }
-    validate_settings(new)
-}
-
 /// `VEL`, `ACC`, `DEC`: one of the closed-loop motion limits, as `SPA` sets its row (the
 /// table's scaling and range), with the command's own error code; each pair checked as the
 /// whole configuration it would make.
@@ -167,7 +153,7 @@ fn motion_limit(p: &params::Param, bad: i32, c: Settings) -> GcsResult {
         if !(p.set)(&mut new, x) {
             return Err(bad);
         }
-        settable(cfg, &new).map_err(|_| bad)?;
+        validate_change(cfg, &new).map_err(|_| bad)?;
         Ok(new)
     })?;
     *cfg = new;
