@@ -28,7 +28,8 @@ pub fn full_contact_preload_n(cfg: &ControllerConfig) -> f32 {
 }
 
 /// What the defaults depend on besides the settings table: the hardware the firmware is built
-/// for (host-sim derives one from a parameter file).
+/// for (host-sim derives one from a parameter file). The rows that take their default from it
+/// say how (`hardware(..)` in [`crate::settings::SETTINGS`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hardware {
     /// Control loop rate: one controller step per [`DAC_SAMPLES_PER_STEP`] DAC samples.
@@ -67,8 +68,8 @@ pub fn controller_config() -> ControllerConfig {
     controller_config_for(&REFERENCE_BOARD)
 }
 
-/// Defaults for `hw`: every setting's fixed default from [`crate::settings::SETTINGS`], the
-/// others from the hardware.
+/// Defaults for `hw`: every setting's default from its row of [`crate::settings::SETTINGS`] (a
+/// fixed value or one from the hardware).
 pub fn controller_config_for(hw: &Hardware) -> ControllerConfig {
     with_defaults(hw, Unset::Zero)
 }
@@ -90,9 +91,10 @@ pub fn with_defaults(hw: &Hardware, unset: Unset) -> ControllerConfig {
     let odd = unset == Unset::Odd;
     let (f, w, n) = if odd { (f32::NAN, u16::MAX, -1i64) } else { (0.0, 0, 0) };
     let reference_signal = if odd { ReferenceSignal::NegativeLimit } else { ReferenceSignal::Index };
-    // Rust needs every field for the struct; the values come below.
+    // Rust needs every field for the struct; the settings' values come from their rows, the
+    // rest is the hardware's.
     let mut cfg = ControllerConfig {
-        loop_hz: hw.loop_hz,
+        loop_hz: n as u32,
         dac: hw.dac,
         motor: hw.motor,
         encoder_nm_per_count: n as u32,
@@ -140,17 +142,6 @@ pub fn with_defaults(hw: &Hardware, unset: Unset) -> ControllerConfig {
         rail_viscous_n_s_per_m: f,
         drive_freq_min_hz: f,
     };
-    crate::settings::apply_fixed_defaults(&mut cfg);
-    // The settings whose default is `hardware(..)` in the table.
-    cfg.encoder_nm_per_count = hw.encoder_nm_per_count;
-    cfg.max_drive_v = hw.dac.max_v - hw.dac.min_v;
-    cfg.preload.newton_per_word = hw.force_cell_newton_per_word;
-    cfg.preload.max_valid_word = hw.force_cell_max_word;
-    cfg.preload_max_n = full_contact_preload_n(&cfg);
-    cfg.moving_mass_kg = hw.motor.moving_mass_kg.to_num();
-    cfg.mu_dynamic = hw.motor.mu.to_num();
-    cfg.tangential_scale = hw.motor.tangential_scale;
-    cfg.normal_force_ratio = hw.motor.normal_force_ratio;
-    cfg.drive_freq_min_hz = hw.motor.lowest_model_freq_hz;
+    crate::settings::apply_defaults(hw, &mut cfg);
     cfg
 }

@@ -1,7 +1,7 @@
 //! Every controller setting, declared once: [`SETTINGS`], one row per setting with its GCS id,
 //! its [`ControllerConfig`] field (the name), GCS unit, type, range, default, whether `WPA`
-//! stores it, whether `SPA` may set it, and its description. Everything else is derived from
-//! this table:
+//! stores it, whether `SPA` may set it, its description and what a change of it invalidates.
+//! Everything else is derived from this table:
 //!
 //! - `SPA`/`SPA?`/`HPA?` ([`crate::gcs`], through [`crate::gcs::params`]): the rows in table
 //!   order, `HPA?` text `description (unit)`;
@@ -9,15 +9,21 @@
 //!   few rules that tie two settings together);
 //! - the flash record ([`crate::storage`]): the stored rows in table order, each in its type's
 //!   width;
-//! - the defaults ([`crate::defaults`]): each row's fixed default, or the hardware's value.
+//! - the defaults ([`crate::defaults`]): each row's fixed default, or its value from the
+//!   hardware ([`Hardware`]);
+//! - what a change forgets ([`invalidated`], used by `ConfigChange::prepare`): each row's
+//!   [`Invalidates`] (the learned load, the learned mass).
 //!
 //! The struct [`ControllerConfig`] is where the controller reads the values; a setting is a
 //! field there and a row here, nothing else.
 //!
-//! Adding, removing or reordering a stored row, or changing its type, changes the flash record:
-//! bump [`crate::storage::VERSION`] and keep a decoder for the previous layout (see `storage`).
+//! Adding a stored row changes the flash record: the row says `Stored since N` with N one more
+//! than the present [`crate::storage::VERSION`], which follows (records of older formats are
+//! read without it). Removing or reordering a stored row, or changing its type, needs a decoder
+//! for the previous layout (see `storage`).
 
 use crate::controller::{ControllerConfig, ReferenceSignal, MAX_TRAVEL_NM};
+use crate::defaults::Hardware;
 
 /// A setting's value in its field's own type, widened: f32 fields as `F32`, every integer field
 /// (u16, u32, i32, i64, bool as 0/1, an enum as its code) as `Int`.
@@ -121,8 +127,9 @@ pub const WORD: Range = Range::Int { lo: 0, hi: u16::MAX as i64 };
 pub enum DefaultValue {
     /// The same on every board: sets the field to it.
     Fixed(fn(&mut ControllerConfig)),
-    /// From the hardware the firmware is built for ([`crate::defaults::Hardware`]); what it is.
-    Hardware(&'static str),
+    /// From the hardware the firmware is built for ([`Hardware`]): what it is, and what sets
+    /// the field from the hardware and the rows before it (their defaults already set).
+    Hardware(&'static str, fn(&Hardware, &mut ControllerConfig)),
 }
 
 /// Whether `WPA` keeps a setting and `SPA` may change it.
@@ -135,6 +142,28 @@ pub enum Keep {
     /// A fact of the hardware: `SPA` refuses it, the record does not hold it (the build's value
     /// counts).
     ReadOnly,
+}
+
+/// What the controller has learned that a change of a setting makes it forget (a set). Every
+/// accepted change also drops the model table (it is built anew for the new settings).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Invalidates(u8);
+
+impl Invalidates {
+    pub const NOTHING: Invalidates = Invalidates(0);
+    /// The load observer's learned load: it was the old motor model's error.
+    pub const LEARNED_LOAD: Invalidates = Invalidates(1);
+    /// The mass estimator's learned mass: what the speed-ups measured no longer holds.
+    pub const LEARNED_MASS: Invalidates = Invalidates(2);
+
+    /// Both sets together.
+    pub const fn and(self, other: Invalidates) -> Invalidates {
+        Invalidates(self.0 | other.0)
+    }
+    /// Whether everything in `other` is in this set.
+    pub const fn contains(self, other: Invalidates) -> bool {
+        self.0 & other.0 == other.0
+    }
 }
 
 /// One setting's declaration (a row of [`SETTINGS`]).
@@ -158,6 +187,11 @@ pub struct Setting {
     pub range: Range,
     pub default: DefaultValue,
     pub keep: Keep,
+    /// A stored row: the record format ([`crate::storage::VERSION`]) that first held it; a
+    /// record of an older format is read without it (its value then comes from the defaults).
+    pub since: u16,
+    /// What a change of it makes the controller forget ([`invalidated`]).
+    pub invalidates: Invalidates,
     pub stored: bool,
     pub read_only: bool,
     /// The field's value.
@@ -249,12 +283,28 @@ impl Field for ReferenceSignal {
     }
 }
 
-/// One row: `id, group, field: type = default; unit, scale, range, keep, description`; the
-/// default is a value of the field's type or `hardware("where it comes from")`. `@check c;` and
-/// a row: whether `c`'s field is in the row's range. A read-only row that is no field of its
+/// A row's hardware default: what `get` makes of the hardware and the rows before it (the
+/// argument types fixed here, so that a row's closure needs none).
+#[inline(always)]
+fn from_hardware<T>(get: fn(&Hardware, &ControllerConfig) -> T, hw: &Hardware, c: &ControllerConfig) -> T {
+    get(hw, c)
+}
+
+/// One row: `id, group, field: type = default; unit, scale, range, keep, description`; a stored
+/// row added after the first record format from the table (2) says since when: `Stored since 6`;
+/// and `, invalidates WHAT | WHAT` when a change of it makes the controller forget something
+/// ([`Invalidates`]); the default is a value of the field's type or
+/// `hardware(|hw, c| value, "where it comes from")` (from the [`Hardware`] and the rows before
+/// it). `@check c;` and a row: whether `c`'s field is in the row's range. A read-only row that is no field of its
 /// own but follows from others: `id, group, name: type = derived(|c| value, "from what");
 /// unit, scale, range, ReadOnly, description`.
 macro_rules! setting {
+    (@since) => {
+        crate::storage::FIRST_TABLE_VERSION
+    };
+    (@since $since:literal) => {
+        $since
+    };
     (@check $c:ident; $id:literal, $group:literal, $name:ident : $t:ty = derived($get:expr, $what:literal);
      $($rest:tt)*) => {
         true
@@ -271,8 +321,11 @@ macro_rules! setting {
             ty: <$t as Field>::TY,
             kind: Kind::of(<$t as Field>::TY),
             range: $range,
-            default: DefaultValue::Hardware($what),
+            // Follows from other fields: nothing to set.
+            default: DefaultValue::Hardware($what, |_: &Hardware, _: &mut ControllerConfig| {}),
             keep: Keep::ReadOnly,
+            since: crate::storage::FIRST_TABLE_VERSION,
+            invalidates: Invalidates::NOTHING,
             stored: false,
             read_only: true,
             get: |c: &ControllerConfig| {
@@ -282,7 +335,7 @@ macro_rules! setting {
             set: |_: &mut ControllerConfig, _: Value| false,
         }
     };
-    (@check $c:ident; $id:literal, $group:literal, $($f:ident).+ : $t:ty = hardware($what:literal);
+    (@check $c:ident; $id:literal, $group:literal, $($f:ident).+ : $t:ty = hardware($get:expr, $what:literal);
      $unit:literal, $scale:literal, $range:expr, $($rest:tt)*) => {
         Field::within($c.$($f).+, &$range)
     };
@@ -290,15 +343,20 @@ macro_rules! setting {
      $unit:literal, $scale:literal, $range:expr, $($rest:tt)*) => {
         Field::within($c.$($f).+, &$range)
     };
-    ($id:literal, $group:literal, $($f:ident).+ : $t:ty = hardware($what:literal); $($rest:tt)*) => {
-        setting!(@row $id, $group, $($f).+ : $t, DefaultValue::Hardware($what); $($rest)*)
+    ($id:literal, $group:literal, $($f:ident).+ : $t:ty = hardware($get:expr, $what:literal);
+     $($rest:tt)*) => {
+        setting!(@row $id, $group, $($f).+ : $t,
+            DefaultValue::Hardware($what, |hw: &Hardware, c: &mut ControllerConfig| {
+                c.$($f).+ = from_hardware::<$t>($get, hw, c);
+            }); $($rest)*)
     };
     ($id:literal, $group:literal, $($f:ident).+ : $t:ty = $default:expr; $($rest:tt)*) => {
         setting!(@row $id, $group, $($f).+ : $t,
             DefaultValue::Fixed(|c: &mut ControllerConfig| c.$($f).+ = $default); $($rest)*)
     };
     (@row $id:literal, $group:literal, $($f:ident).+ : $t:ty, $default:expr;
-     $unit:literal, $scale:literal, $range:expr, $keep:ident, $desc:literal) => {
+     $unit:literal, $scale:literal, $range:expr, $keep:ident $(since $since:literal)?, $desc:literal
+     $(, invalidates $($inv:ident)|+)?) => {
         Setting {
             id: $id,
             name: stringify!($($f).+),
@@ -311,6 +369,8 @@ macro_rules! setting {
             range: $range,
             default: $default,
             keep: Keep::$keep,
+            since: setting!(@since $($since)?),
+            invalidates: Invalidates::NOTHING $($(.and(Invalidates::$inv))+)?,
             stored: matches!(Keep::$keep, Keep::Stored),
             read_only: matches!(Keep::$keep, Keep::ReadOnly),
             get: |c: &ControllerConfig| Field::to_value(c.$($f).+),
@@ -348,7 +408,8 @@ settings! {
     pub static SETTINGS;
 
     // id, group, field: type = default; GCS unit, field units per GCS unit (f32 fields; an i64 nm
-    // field is always shown in mm), range in the field's unit, keep, description
+    // field is always shown in mm), range in the field's unit, keep [since the record format
+    // that first held it], description [, invalidates what a change of it forgets]
     // 400 /s: measured on the sweep at 100, 200, 300, 400 and 600 /s, the peak following errors
     // fall up to 400 /s (by 1.5–2× against unknown loads, the light carriages' 10 µm overshoot
     // 2.4–2.5× less); at 600 /s the 50 kg carriage's 1 µm step rings (14 ms, was 7). The loop's
@@ -378,7 +439,8 @@ settings! {
     // is checked too.
     (0x1001, "Drive", drive_freq_hz: f32 = 2200.0;
         "Hz", 1.0, POSITIVE, Stored, "Highest drive frequency of coarse motion"),
-    (0x1002, "Drive", max_drive_v: f32 = hardware("the amplifier's output range");
+    (0x1002, "Drive", max_drive_v: f32 =
+        hardware(|hw, _| hw.dac.max_v - hw.dac.min_v, "the amplifier's output range");
         "V peak-to-peak", 1.0, POSITIVE, Stored, "Maximum drive amplitude"),
     (0x1003, "Motion", speed_fraction: f32 = 0.92;
         "", 1.0, FRACTION, Stored, "Share of the model no-load speed the profile uses"),
@@ -410,16 +472,18 @@ settings! {
     (0x100F, "Preload", preload_min_n: f32 = 3.0;
         "N", 1.0, NON_NEGATIVE, Stored, "Preload window minimum"),
     (0x1010, "Preload", preload_max_n: f32 =
-        hardware("the highest preload at which full drive still lifts the foot off, physics.md §2");
+        hardware(|_, c| crate::defaults::full_contact_preload_n(c),
+            "the highest preload at which full drive still lifts the foot off, physics.md §2");
         "N", 1.0, NON_NEGATIVE, Stored, "Preload window maximum"),
     (0x1011, "Preload", preload.zero_word: u16 = 0;
         "", 1.0, WORD, Stored, "Force cell zero word"),
     (0x1012, "Preload", preload.newton_per_word: f32 =
-        hardware("the force cell's full scale over its full-scale word");
+        hardware(|hw, _| hw.force_cell_newton_per_word, "the force cell's full scale over its full-scale word");
         "N per word", 1.0, ANY, Stored, "Force cell scale"),
     (0x1013, "Preload", preload.min_valid_word: u16 = 0;
         "", 1.0, WORD, Stored, "Force cell lowest valid word"),
-    (0x1014, "Preload", preload.max_valid_word: u16 = hardware("the force cell's full-scale word");
+    (0x1014, "Preload", preload.max_valid_word: u16 =
+        hardware(|hw, _| hw.force_cell_max_word, "the force cell's full-scale word");
         "", 1.0, WORD, Stored, "Force cell highest valid word"),
     (0x1015, "Preload", preload.filter_alpha: f32 = 0.01;
         "", 1.0, FRACTION, Stored, "Force cell filter coefficient per period"),
@@ -431,35 +495,43 @@ settings! {
         "V", 1.0, POSITIVE, Stored, "Drive amplitude of the reference search"),
     (0x1019, "Referencing", reference_timeout_s: f32 = 200.0;
         "s", 1.0, POSITIVE, Stored, "Reference search timeout"),
-    // Appended last of the stored rows: a version-2 record is this record without it.
-    (0x101A, "Motor", moving_mass_kg: f32 = hardware("the motor table's moving mass");
-        "kg", 1.0, Range::Float { lo: 1e-3, hi: 1e3, lo_open: false }, Stored,
-        "Moving mass of the carriage and payload"),
-    // The motor as calibrated (`host-sim calibrate` uploads the model-gap workflow's fit);
-    // appended after the moving mass: a version-3 record is this record without them.
-    (0x101B, "Motor", mu_dynamic: f32 = hardware("the motor table's friction coefficient");
-        "", 1.0, Range::Float { lo: 0.0, hi: 2.0, lo_open: true }, Stored,
-        "Sliding friction coefficient of the drive foot"),
-    (0x101C, "Motor", tangential_scale: f32 = hardware("the motor table's tangential scale");
-        "", 1.0, POSITIVE, Stored, "Tangential scale of the stator (within 4x of the table's)"),
-    (0x101D, "Motor", normal_force_ratio: f32 = hardware("the motor table's normal force ratio");
-        "", 1.0, POSITIVE, Stored, "Normal force ratio of the stator (within 4x of the table's)"),
+    (0x101A, "Motor", moving_mass_kg: f32 =
+        hardware(|hw, _| hw.motor.moving_mass_kg.to_num(), "the motor table's moving mass");
+        "kg", 1.0, Range::Float { lo: 1e-3, hi: 1e3, lo_open: false }, Stored since 3,
+        "Moving mass of the carriage and payload", invalidates LEARNED_MASS),
+    // The motor as calibrated (`host-sim calibrate` uploads the model-gap workflow's fit). What
+    // the load observer learned was the old model's error, and the speed-ups were timed against
+    // it.
+    (0x101B, "Motor", mu_dynamic: f32 =
+        hardware(|hw, _| hw.motor.mu.to_num(), "the motor table's friction coefficient");
+        "", 1.0, Range::Float { lo: 0.0, hi: 2.0, lo_open: true }, Stored since 4,
+        "Sliding friction coefficient of the drive foot", invalidates LEARNED_LOAD | LEARNED_MASS),
+    (0x101C, "Motor", tangential_scale: f32 =
+        hardware(|hw, _| hw.motor.tangential_scale, "the motor table's tangential scale");
+        "", 1.0, POSITIVE, Stored since 4,
+        "Tangential scale of the stator (within 4x of the table's)", invalidates LEARNED_LOAD | LEARNED_MASS),
+    (0x101D, "Motor", normal_force_ratio: f32 =
+        hardware(|hw, _| hw.motor.normal_force_ratio, "the motor table's normal force ratio");
+        "", 1.0, POSITIVE, Stored since 4,
+        "Normal force ratio of the stator (within 4x of the table's)", invalidates LEARNED_LOAD | LEARNED_MASS),
     (0x101E, "Motor", rail_coulomb_n: f32 = 0.0;
-        "N", 1.0, Range::Float { lo: 0.0, hi: 100.0, lo_open: false }, Stored,
-        "Guide Coulomb friction of the carriage"),
+        "N", 1.0, Range::Float { lo: 0.0, hi: 100.0, lo_open: false }, Stored since 4,
+        "Guide Coulomb friction of the carriage", invalidates LEARNED_LOAD | LEARNED_MASS),
     (0x101F, "Motor", rail_viscous_n_s_per_m: f32 = 0.0;
-        "N per m/s", 1.0, Range::Float { lo: 0.0, hi: 10_000.0, lo_open: false }, Stored,
-        "Guide viscous friction of the carriage"),
-    (0x1020, "Hardware", encoder_nm_per_count: u32 = hardware("the encoder's resolution");
+        "N per m/s", 1.0, Range::Float { lo: 0.0, hi: 10_000.0, lo_open: false }, Stored since 4,
+        "Guide viscous friction of the carriage", invalidates LEARNED_LOAD | LEARNED_MASS),
+    (0x1020, "Hardware", encoder_nm_per_count: u32 =
+        hardware(|hw, _| hw.encoder_nm_per_count, "the encoder's resolution");
         "nm per count", 1.0, Range::Int { lo: 1, hi: 1_000_000 }, ReadOnly, "Encoder resolution"),
-    (0x1021, "Hardware", loop_hz: u32 = hardware("the DAC rate over 20 samples per period");
+    (0x1021, "Hardware", loop_hz: u32 =
+        hardware(|hw, _| hw.loop_hz, "the DAC rate over 20 samples per period");
         "Hz", 1.0, Range::Int { lo: 1, hi: u32::MAX as i64 }, ReadOnly, "Control loop rate"),
-    // The last stored row (format 5): a version-4 record is this record without it. The
-    // controller chooses the drive frequency from here up to 0x1001, where its model (with the
+    // The controller chooses the drive frequency from here up to 0x1001, where its model (with the
     // moving mass) gives the highest speed against the load it expects; at or above 0x1001 the
     // drive frequency is fixed at 0x1001.
-    (0x1022, "Drive", drive_freq_min_hz: f32 = hardware("the motor table's lowest frequency where eq. 7 holds");
-        "Hz", 1.0, POSITIVE, Stored, "Lowest drive frequency the controller chooses"),
+    (0x1022, "Drive", drive_freq_min_hz: f32 = hardware(|hw, _| hw.motor.lowest_model_freq_hz,
+        "the motor table's lowest frequency where eq. 7 holds");
+        "Hz", 1.0, POSITIVE, Stored since 5, "Lowest drive frequency the controller chooses"),
     // PI's SERVO_UPDATE_TIME: PIPython's data recorder tools read it (`RTR` counts these).
     (0x0E000200, "Hardware",
         servo_update_time_s: f32 = derived(|c| 1.0 / c.loop_hz.max(1) as f32, "one period of the control loop");
@@ -475,11 +547,22 @@ pub fn find(id: i64) -> Option<&'static Setting> {
     SETTINGS.iter().find(|s| i64::from(s.id) == id)
 }
 
-/// Sets every setting with a fixed default to it (the hardware's are the caller's).
-pub fn apply_fixed_defaults(c: &mut ControllerConfig) {
+/// What changing the settings `old` into `new` makes the controller forget: what the changed
+/// rows invalidate, together.
+pub fn invalidated(old: &ControllerConfig, new: &ControllerConfig) -> Invalidates {
+    SETTINGS
+        .iter()
+        .filter(|s| s.invalidates != Invalidates::NOTHING && (s.get)(old) != (s.get)(new))
+        .fold(Invalidates::NOTHING, |all, s| all.and(s.invalidates))
+}
+
+/// Sets every setting to its default for `hw`, row by row in table order (a row's hardware
+/// default may read the rows before it).
+pub fn apply_defaults(hw: &Hardware, c: &mut ControllerConfig) {
     for s in SETTINGS {
-        if let DefaultValue::Fixed(apply) = s.default {
-            apply(c);
+        match s.default {
+            DefaultValue::Fixed(apply) => apply(c),
+            DefaultValue::Hardware(_, apply) => apply(hw, c),
         }
     }
 }

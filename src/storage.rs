@@ -20,9 +20,9 @@
 //! rate, the DAC/amplifier description, the encoder resolution and the motor table (the
 //! motor's calibration against that table, `0x101B`–`0x101F`, is stored).
 //!
-//! Versions 4 (before the lowest drive frequency), 3 (before the calibrated motor) and 2 (before
-//! the moving mass) are this layout without the rows added since; those settings then come from
-//! the defaults.
+//! Versions 2 to [`VERSION`] − 1 are this layout without the rows added since (each stored row's
+//! `since` in the table: 3 added the moving mass, 4 the calibrated motor, 5 the lowest drive
+//! frequency); those settings then come from the defaults.
 //! Version 1 (before the settings table) still loads: it lacked the motion limits (`VEL`, `ACC`,
 //! `DEC`) and the referencing settings, which then come from the defaults; its encoder
 //! resolution (read-only, so always the build's) and the removed fine-mode gain are skipped.
@@ -32,17 +32,39 @@ use crate::settings::{Setting, Ty, Value, SETTINGS};
 
 /// `"PZDP"` read as a little-endian u32.
 pub const MAGIC: u32 = u32::from_le_bytes(*b"PZDP");
-/// Format version; bump on any change of the payload (adding, removing, reordering a stored
-/// setting or changing its type), and teach [`decode`] the old layout.
-pub const VERSION: u16 = 5;
+/// Format version: the newest stored row's `since` (a stored row added says `Stored since` one
+/// more than this). Removing or reordering a stored setting or changing its type needs a new
+/// version by hand and [`decode`] taught the old layout.
+pub const VERSION: u16 = newest_since();
+/// The first format from the settings table (version 1 was written before it): a stored row
+/// without a `since` of its own is in every record from this one on.
+pub const FIRST_TABLE_VERSION: u16 = 2;
 const HEADER_LEN: usize = 8;
 const CRC_LEN: usize = 4;
 
-const fn stored_len() -> usize {
+/// Whether a record of format `version` (2 or later) holds row `s`.
+const fn holds(version: u16, s: &Setting) -> bool {
+    s.stored && s.since <= version
+}
+
+const fn newest_since() -> u16 {
+    let mut v = FIRST_TABLE_VERSION;
+    let mut rest = SETTINGS;
+    while let [s, tail @ ..] = rest {
+        if s.stored && s.since > v {
+            v = s.since;
+        }
+        rest = tail;
+    }
+    v
+}
+
+/// Payload bytes of format `version` (2 or later): the rows it holds, each in its type's width.
+pub const fn payload_len(version: u16) -> usize {
     let mut n = 0;
     let mut rest = SETTINGS;
     while let [s, tail @ ..] = rest {
-        if s.stored {
+        if holds(version, s) {
             n += s.ty.size();
         }
         rest = tail;
@@ -51,7 +73,7 @@ const fn stored_len() -> usize {
 }
 
 /// Payload bytes of format [`VERSION`].
-pub const PAYLOAD_LEN: usize = stored_len();
+pub const PAYLOAD_LEN: usize = payload_len(VERSION);
 /// Whole record: header, payload, CRC.
 pub const RECORD_LEN: usize = HEADER_LEN + PAYLOAD_LEN + CRC_LEN;
 
@@ -123,40 +145,12 @@ const fn v1_len() -> usize {
     n
 }
 
-/// Settings added by version 3 (appended after version 2's last stored row): a version-2 record
-/// is version 3's without them.
-const ADDED_IN_V3: &[u32] = &[0x101A];
-/// Settings added by version 4, the calibrated motor (appended after version 3's last stored
-/// row): a version-3 record is this version's without them.
-const ADDED_IN_V4: &[u32] = &[0x101B, 0x101C, 0x101D, 0x101E, 0x101F];
-/// Settings added by version 5, the lowest drive frequency the controller chooses.
-const ADDED_IN_V5: &[u32] = &[0x1022];
-
-/// Whether a record of format `version` (2 or later) holds setting `id`.
-fn in_version(id: u32, version: u16) -> bool {
-    !(version < 3 && ADDED_IN_V3.contains(&id)
-        || version < 4 && ADDED_IN_V4.contains(&id)
-        || version < 5 && ADDED_IN_V5.contains(&id))
-}
-
-const fn without(mut n: usize, added: &[u32]) -> usize {
-    let mut rest = added;
-    while let [id, tail @ ..] = rest {
-        n -= setting_size(*id);
-        rest = tail;
-    }
-    n
-}
-
-/// Payload bytes of format version 4 (the settings table before the lowest drive frequency).
-pub const V4_PAYLOAD_LEN: usize = 164;
-const _: () = assert!(without(PAYLOAD_LEN, ADDED_IN_V5) == V4_PAYLOAD_LEN);
-/// Payload bytes of format version 3 (before the calibrated motor).
-pub const V3_PAYLOAD_LEN: usize = 144;
-const _: () = assert!(without(V4_PAYLOAD_LEN, ADDED_IN_V4) == V3_PAYLOAD_LEN);
-/// Payload bytes of format version 2 (before the moving mass).
-pub const V2_PAYLOAD_LEN: usize = 140;
-const _: () = assert!(without(V3_PAYLOAD_LEN, ADDED_IN_V3) == V2_PAYLOAD_LEN);
+// The formats written so far are fixed: a change of a row that was in one of them (its type,
+// its `since`, its place among the stored rows) fails here, not on a board's stored record.
+const _: () = assert!(payload_len(2) == 140);
+const _: () = assert!(payload_len(3) == 144);
+const _: () = assert!(payload_len(4) == 164);
+const _: () = assert!(payload_len(5) == 168);
 
 /// Payload bytes of format version 1.
 pub const V1_PAYLOAD_LEN: usize = 119;
@@ -304,8 +298,8 @@ pub fn validate(cfg: &ControllerConfig) -> Result<(), StorageError> {
     }
 }
 
-/// Reads a record (this [`VERSION`], or version 4, 3, 2 or 1) from the start of `bytes` (extra bytes after
-/// it are ignored, so a whole flash page can be passed). Settings not in the record come from
+/// Reads a record (this [`VERSION`] or any older one) from the start of `bytes` (extra bytes
+/// after it are ignored, so a whole flash page can be passed). Settings not in the record come from
 /// `defaults`.
 pub fn decode(bytes: &[u8], defaults: &ControllerConfig) -> Result<ControllerConfig, StorageError> {
     let mut r = Reader { bytes, pos: 0 };
@@ -315,11 +309,8 @@ pub fn decode(bytes: &[u8], defaults: &ControllerConfig) -> Result<ControllerCon
     }
     let version = r.u16()?;
     let payload_len = match version {
-        VERSION => PAYLOAD_LEN,
-        4 => V4_PAYLOAD_LEN,
-        3 => V3_PAYLOAD_LEN,
-        2 => V2_PAYLOAD_LEN,
         1 => V1_PAYLOAD_LEN,
+        FIRST_TABLE_VERSION..=VERSION => payload_len(version),
         _ => return Err(StorageError::WrongVersion(version)),
     };
     let len = r.u16()?;
@@ -332,9 +323,9 @@ pub fn decode(bytes: &[u8], defaults: &ControllerConfig) -> Result<ControllerCon
         return Err(StorageError::BadCrc);
     }
     let mut cfg = *defaults;
-    if version >= 2 {
-        // Versions 2 to 4 are this layout without the rows added since.
-        for s in SETTINGS.iter().filter(|s| s.stored && in_version(s.id, version)) {
+    if version >= FIRST_TABLE_VERSION {
+        // Older formats are this layout without the rows added since.
+        for s in SETTINGS.iter().filter(|s| holds(version, s)) {
             r.setting(s, &mut cfg)?;
         }
     } else {

@@ -447,6 +447,27 @@ fn velocity_acceleration_deceleration() {
     ]);
 }
 
+/// `VEL`/`ACC`/`DEC` set their rows as `SPA` does: the nearest f32 of the value in nm/s (the
+/// f32 of the value in mm/s times 1e6 in f32 is one step off for these: 578239.9375 for
+/// 578239.9, which `SPA?` shows as 0.5782399).
+#[test]
+fn motion_limits_set_the_same_value_as_spa() {
+    Rig::new().transcript(&[
+        // 578239.875 nm/s, 14804.900390625 nm/s², 795126976 nm/s² to nine digits.
+        (b"SPA 1 0xA 0.5782399 1 0xB 0.0148049 1 0xC 795.127\n", b""),
+        (b"SPA? 1 0xA 1 0xB 1 0xC\n", b"1 0xA=0.57823986 \n1 0xB=0.014804901 \n1 0xC=795.12695\n"),
+        (b"SPA 1 0xA 1 1 0xB 1 1 0xC 1\n", b""),
+        (b"VEL 1 0.5782399\n", b""),
+        (b"ACC 1 0.0148049\n", b""),
+        (b"DEC 1 795.127\n", b""),
+        (b"SPA? 1 0xA 1 0xB 1 0xC\n", b"1 0xA=0.57823986 \n1 0xB=0.014804901 \n1 0xC=795.12695\n"),
+        // The PI-named queries show about seven digits.
+        (b"VEL?\n", b"1=0.5782399\n"),
+        (b"DEC?\n", b"1=795.127\n"),
+        (b"ERR?\n", b"0\n"),
+    ]);
+}
+
 #[test]
 fn parameters_spa_hpa_wpa() {
     let mut rig = Rig::new();
@@ -600,6 +621,33 @@ fn extensions_preload_drive_fault_thrust_and_timing() {
         rig.ctl.step(&Inputs { encoder_raw: rig.encoder, preload_word: 4095, ..Default::default() });
     }
     rig.transcript(&[(b"XPF?\n", b""), (b"ERR?\n", b"505\n"), (b"XTM?\n", b""), (b"ERR?\n", b"505\n")]);
+}
+
+/// `SVO 1 1` after a fault checks the preload with the controller's one check before clearing
+/// the fault: outside the window 1024, unreadable 505, and the fault stays.
+#[test]
+fn servo_on_after_a_fault_needs_the_preload_in_its_window() {
+    let mut rig = Rig::new();
+    rig.ready();
+    rig.encoder = rig.encoder.wrapping_add(1000);
+    rig.steps(1, Inputs::default());
+    rig.transcript(&[
+        (b"ERR?\n", b"1024\n"),
+        // The window's top below the 16 N measured.
+        (b"SPA 1 0x1010 10\n", b""),
+        (b"ERR?\n", b"0\n"),
+        (b"SVO 1 1\n", b""),
+        (b"ERR?\n", b"1024\n"),
+        (b"XFT?\n", b"1=5 encoder jump\n"),
+        (b"SVO?\n", b"1=0\n"),
+        (b"SPA 1 0x1010 30\n", b""),
+    ]);
+    for _ in 0..3 {
+        rig.ctl.step(&Inputs { encoder_raw: rig.encoder, preload_word: 4095, ..Default::default() });
+    }
+    rig.transcript(&[(b"SVO 1 1\n", b""), (b"ERR?\n", b"505\n"), (b"XFT?\n", b"1=5 encoder jump\n")]);
+    rig.steps(3, Inputs::default());
+    rig.transcript(&[(b"SVO 1 1\n", b""), (b"ERR?\n", b"0\n"), (b"XFT?\n", b"1=0 no fault\n")]);
 }
 
 #[test]

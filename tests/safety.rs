@@ -636,6 +636,40 @@ fn a_settings_change_prepared_from_older_settings_is_refused() {
     assert!(ConfigChange::prepare(ctl.config(), 0, negative).is_err());
 }
 
+/// What a settings change forgets: a new motor calibration restarts the load estimate from the
+/// told load; a new told load, a limit or a new mass alone leaves the estimate; a new mass is
+/// taken at once (the learned one forgotten).
+#[test]
+fn a_new_calibration_forgets_the_learned_load_and_a_new_mass_the_learned_mass() {
+    let cfg = defaults::controller_config();
+    let mut ctl = Controller::new(cfg).unwrap();
+    assert_eq!(ctl.load_estimate_n(), 0.0);
+    let calibrations: [fn(&mut ControllerConfig); 5] = [
+        |c| c.mu_dynamic *= 1.1,
+        |c| c.tangential_scale *= 1.1,
+        |c| c.normal_force_ratio *= 1.1,
+        |c| c.rail_coulomb_n += 0.5,
+        |c| c.rail_viscous_n_s_per_m += 1.0,
+    ];
+    let mut estimate_n = 0.0;
+    for (i, recalibrate) in calibrations.iter().enumerate() {
+        let told_n = 1.0 + i as f32;
+        // Told load, limit, mass: what was learned stays.
+        let mut c = *ctl.config();
+        c.expected_load_n = told_n;
+        c.velocity_max_nm_s *= 0.9;
+        c.moving_mass_kg *= 1.1;
+        ctl.set_config(c).unwrap();
+        assert_eq!(ctl.load_estimate_n(), estimate_n, "calibration {i}: kept");
+        assert_eq!(ctl.moving_mass_kg(), c.moving_mass_kg, "calibration {i}: the new mass");
+        // The calibration: from the told load again.
+        recalibrate(&mut c);
+        ctl.set_config(c).unwrap();
+        assert_eq!(ctl.load_estimate_n(), told_n, "calibration {i}: forgotten");
+        estimate_n = told_n;
+    }
+}
+
 #[test]
 fn settings_commands_on_a_copy_then_set_config_equal_running_them_directly() {
     let lines: [&[u8]; 7] = [

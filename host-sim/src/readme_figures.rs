@@ -213,7 +213,7 @@ pub fn parameters_table() -> String {
         let value = gcs_text(s, (s.get)(&defaults));
         let default = match s.default {
             DefaultValue::Fixed(_) => value,
-            DefaultValue::Hardware(what) => format!("{what} (reference board: {value})"),
+            DefaultValue::Hardware(what, _) => format!("{what} (reference board: {value})"),
         };
         let kept = match s.keep {
             Keep::Stored => "`WPA`",

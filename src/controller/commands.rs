@@ -3,8 +3,9 @@
 
 use super::open_loop::OpenLoopRun;
 use super::referencing::ReferenceSearch;
-use super::{validate_settings, Activity, CommandError, Controller, ControllerConfig, Mode, State};
+use super::{validate_change, Activity, CommandError, Controller, ControllerConfig, Mode, State};
 use crate::model::PerVolt;
+use crate::settings::Invalidates;
 
 impl Controller {
     /// Replaces the settings after checking them. What the hardware fixes (loop and DAC rates,
@@ -27,14 +28,14 @@ impl Controller {
             return Err(CommandError::Busy);
         }
         let cfg = &change.cfg;
-        self.load.configure(cfg.load_observer(), change.recalibrated);
+        self.load.configure(cfg.load_observer(), change.forget_load);
         self.pi.configure(cfg.plain_pi());
         self.supervisor.configure(cfg.supervisor());
         self.fine.configure(cfg.fine_mode());
         self.frequency.configure(cfg.profile_wait_lag_nm);
         self.feedback.configure(cfg.preload);
         // What the speed-ups measured stays through a speed or limit change (`VEL`, `ACC`, …),
-        // not through a new mass or calibration.
+        // not through a new mass or calibration (the rows' `invalidates`).
         self.mass.configure(cfg.moving_mass_kg, change.forget_mass);
         self.cfg = *cfg;
         self.model.reconfigure_with(change.per_volt, change.fine_nm_per_v);
@@ -241,9 +242,9 @@ pub struct ConfigChange {
     cfg: ControllerConfig,
     per_volt: PerVolt,
     fine_nm_per_v: f32,
-    /// A new motor calibration: what the load observer learned was the old model's error.
-    recalibrated: bool,
-    /// A new mass or calibration: what the speed-ups measured no longer holds.
+    /// A changed setting invalidates the learned load ([`Invalidates::LEARNED_LOAD`]).
+    forget_load: bool,
+    /// A changed setting invalidates the learned mass ([`Invalidates::LEARNED_MASS`]).
     forget_mass: bool,
     /// The generation of the settings it replaces.
     from_generation: u32,
@@ -257,25 +258,13 @@ impl ConfigChange {
         generation: u32,
         cfg: ControllerConfig,
     ) -> Result<Self, CommandError> {
-        let c = current;
-        if cfg.loop_hz != c.loop_hz
-            || cfg.dac != c.dac
-            || cfg.encoder_nm_per_count != c.encoder_nm_per_count
-            || cfg.motor != c.motor
-        {
-            return Err(CommandError::InvalidValue);
-        }
-        validate_settings(&cfg)?;
-        let recalibrated = cfg.mu_dynamic != c.mu_dynamic
-            || cfg.tangential_scale != c.tangential_scale
-            || cfg.normal_force_ratio != c.normal_force_ratio
-            || cfg.rail_coulomb_n != c.rail_coulomb_n
-            || cfg.rail_viscous_n_s_per_m != c.rail_viscous_n_s_per_m;
+        validate_change(current, &cfg)?;
+        let forgets = crate::settings::invalidated(current, &cfg);
         Ok(ConfigChange {
             per_volt: cfg.per_volt(),
             fine_nm_per_v: cfg.fine_nm_per_v(),
-            recalibrated,
-            forget_mass: recalibrated || cfg.moving_mass_kg != c.moving_mass_kg,
+            forget_load: forgets.contains(Invalidates::LEARNED_LOAD),
+            forget_mass: forgets.contains(Invalidates::LEARNED_MASS),
             from_generation: generation,
             cfg,
         })

@@ -200,6 +200,21 @@ pub fn validate_settings(c: &ControllerConfig) -> Result<(), CommandError> {
     }
 }
 
+/// Whether the settings `new` may replace `old` at run time: what the hardware fixes (loop and
+/// DAC rates, DAC range, encoder resolution, motor table) unchanged and the settings in range
+/// together ([`validate_settings`]). The one check of a change: `SPA`, `VEL`/`ACC`/`DEC` and
+/// `ConfigChange::prepare` use it.
+pub fn validate_change(old: &ControllerConfig, new: &ControllerConfig) -> Result<(), CommandError> {
+    if new.loop_hz != old.loop_hz
+        || new.dac != old.dac
+        || new.encoder_nm_per_count != old.encoder_nm_per_count
+        || new.motor != old.motor
+    {
+        return Err(CommandError::InvalidValue);
+    }
+    validate_settings(new)
+}
+
 /// The calibration as a whole: λ and ρ within [`CALIBRATION_RATIO_MAX`] of the table's.
 fn calibration_fits_table(c: &ControllerConfig) -> bool {
     let (t, n) = c.calibration_ratios();

@@ -65,11 +65,11 @@ impl LoadObserver {
         }
     }
 
-    /// New settings; `recalibrated` (a new motor calibration): what was learned was the old
-    /// model's error, so the estimate starts again from the told load.
-    pub(super) fn configure(&mut self, cfg: LoadObserverConfig, recalibrated: bool) {
+    /// New settings; `forget` (a new motor calibration, see the settings' `invalidates`): what
+    /// was learned was the old model's error, so the estimate starts again from the told load.
+    pub(super) fn configure(&mut self, cfg: LoadObserverConfig, forget: bool) {
         self.cfg = cfg;
-        if recalibrated {
+        if forget {
             self.observed_n = cfg.expected_load_n;
             self.integral_n = 0.0;
             self.estimate_n = cfg.expected_load_n;

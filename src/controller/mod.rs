@@ -36,7 +36,7 @@ mod supervision;
 mod supervisor;
 pub mod table_build;
 pub use commands::ConfigChange;
-pub use config::{validate_settings, ControllerConfig, MAX_TRAVEL_NM};
+pub use config::{validate_change, validate_settings, ControllerConfig, MAX_TRAVEL_NM};
 use feedback::Feedback;
 use fine::{FineMode, FineStep};
 use frequency_policy::FrequencyPolicy;
@@ -388,7 +388,10 @@ impl Controller {
         self.state() == State::Holding && self.motion.on_target_s() >= self.cfg.settle_time_s
     }
 
-    fn check_preload(&self) -> Result<f32, CommandError> {
+    /// The measured preload (N) if it is read and within the window: the one check, for
+    /// servo on, moves, referencing, open-loop runs, the supervisor and the protocol's `SVO`
+    /// after a fault.
+    pub fn check_preload(&self) -> Result<f32, CommandError> {
         let f = self.preload_n().ok_or(CommandError::PreloadInvalid)?;
         if f < self.cfg.preload_min_n || f > self.cfg.preload_max_n {
             return Err(CommandError::PreloadOutOfWindow);

@@ -3,7 +3,7 @@
 //! that goes on over several buffers (the `DRR?` cursor: [`Gcs::reply_pending`],
 //! [`Gcs::continue_reply`]).
 
-use super::num::{self, write_fixed, write_general, write_i64, write_scaled, write_u64};
+use super::num::{self, write_fixed, write_i64, write_scaled, write_u64};
 use super::{Gcs, Reply, LINE_CAPACITY};
 
 pub(super) type Line = heapless::Vec<u8, LINE_CAPACITY>;
@@ -69,9 +69,6 @@ impl<'a> Out<'a> {
     }
     pub(super) fn fixed(&mut self, v: f64, decimals: u32) {
         write_fixed(self, v, decimals);
-    }
-    pub(super) fn general(&mut self, v: f64) {
-        write_general(self, v);
     }
     /// Bytes the reply buffer still takes.
     pub(super) fn room(&self) -> usize {

@@ -1,6 +1,7 @@
 //! Motion and servo handlers: `SVO`, `RON`, `FRF`, `POS`, `MOV`, `MVR`, `STP`, `HLT` and the
-//! open-loop extension `XOS`, with the checks they share (preload, whether a move may start) and
-//! the mapping of the controller's [`CommandError`] to GCS error numbers.
+//! open-loop extension `XOS`, with the check they share (whether a move may start) and the
+//! mapping of the controller's [`CommandError`] to GCS error numbers (the preload window is the
+//! controller's one check, [`Controller::check_preload`]).
 
 use super::args::{axis, flag, no_args, number, pairs, position_nm, to_f32, within_travel};
 use super::call::{Call, GcsResult};
@@ -22,15 +23,6 @@ fn command_error(e: CommandError) -> i32 {
 }
 
 impl Gcs {
-    fn check_preload(&self, ctl: &Controller) -> GcsResult {
-        let f = ctl.preload_n().ok_or(error::SENSOR_SIGNAL_INVALID)?;
-        let c = ctl.config();
-        if f < c.preload_min_n || f > c.preload_max_n {
-            return Err(error::MOTION_ERROR);
-        }
-        Ok(())
-    }
-
     /// Whether a closed-loop move may start: servo on, referenced (with reference mode on),
     /// not referencing.
     fn move_allowed(&self, ctl: &Controller) -> GcsResult {
@@ -44,7 +36,7 @@ impl Gcs {
     }
 }
 
-pub(super) fn svo(gcs: &mut Gcs, c: Call) -> GcsResult {
+pub(super) fn svo(_gcs: &mut Gcs, c: Call) -> GcsResult {
     let Call { args, ctl, .. } = c;
     let on = pairs(args, flag)?;
     if ctl.referencing() {
@@ -59,7 +51,7 @@ pub(super) fn svo(gcs: &mut Gcs, c: Call) -> GcsResult {
         // As on PI controllers after a motion error: switching the servo (on or off)
         // again is the recovery. Check what servo-on needs before clearing.
         if on {
-            gcs.check_preload(ctl)?;
+            ctl.check_preload().map_err(command_error)?;
         }
         ctl.clear_fault();
     }

@@ -2,7 +2,7 @@
 //! seen from the protocol, in GCS units (mm, mm/s, s, N, V, Hz). Only the unit conversions live
 //! here; ids, ranges, descriptions and what is stored are the table's.
 
-use super::num::{write_f32, write_i64, write_scaled, Decimal, Sink};
+use super::num::{write_f32, write_general, write_i64, write_scaled, Decimal, Sink};
 use crate::settings::Value;
 pub use crate::settings::{find, Kind, Setting as Param, SETTINGS as PARAMS};
 
@@ -15,6 +15,21 @@ fn nm(mm: f64) -> Option<i64> {
 fn f32_of(v: f64) -> Option<f32> {
     let f = v as f32;
     f.is_finite().then_some(f)
+}
+
+/// The row with this id, looked up when the firmware is built (an id not in the table fails
+/// the build): the PI-named commands (`VEL`, `ACC`, `DEC`, `TMN?`, `TMX?`) name their row so.
+/// For constants only.
+#[allow(clippy::panic, reason = "evaluated in constants: a missing id fails the build")]
+pub const fn row(id: u32) -> &'static Param {
+    let mut rest = PARAMS;
+    while let [p, tail @ ..] = rest {
+        if p.id == id {
+            return p;
+        }
+        rest = tail;
+    }
+    panic!("no setting with this id")
 }
 
 /// The field value `SPA` sets from a number in the protocol's unit; None when the field's type
@@ -38,5 +53,16 @@ pub fn write_gcs(out: &mut dyn Sink, p: &Param, v: Value) -> bool {
         (_, Value::Int(x)) => write_i64(out, x),
         // f32 division: hardware on the board; the value is an f32 anyway.
         (_, Value::F32(x)) => write_f32(out, x / p.scale),
+    }
+}
+
+/// Writes `p`'s value `v` as the PI-named queries (`VEL?`, `ACC?`, `DEC?`) show it: an f32
+/// setting in the protocol's unit with about seven significant digits ([`write_general`]),
+/// anything else as [`write_gcs`]. False when the sink is full.
+pub fn write_short(out: &mut dyn Sink, p: &Param, v: Value) -> bool {
+    match v {
+        // f32 division, as `write_gcs`'s.
+        Value::F32(x) => write_general(out, f64::from(x / p.scale)),
+        Value::Int(_) => write_gcs(out, p, v),
     }
 }

@@ -1,15 +1,16 @@
 //! Settings handlers: `SPA`/`SPA?` (parameters by id, see [`super::params`]), `HPA?`, the
-//! closed-loop limits `VEL`/`ACC`/`DEC` and their queries, the travel limits `TMN?`/`TMX?`, and
-//! `WPA` (store to non-volatile memory). The settings commands change a copy of the settings
+//! closed-loop limits `VEL`/`ACC`/`DEC` and their queries, the travel limits `TMN?`/`TMX?` (the
+//! PI-named commands: each its row of the table, 0xA, 0xB, 0xC, 0x30, 0x15), and `WPA` (store
+//! to non-volatile memory). The settings commands change a copy of the settings
 //! (a [`Settings`] call): the board hands it to the controller afterwards.
 
-use super::args::{axis, no_args, number, pairs, to_f32};
+use super::args::{axis, no_args, number, pairs};
 use super::call::{Call, GcsResult, Query, Settings};
 use super::framing::Out;
 use super::num::parse_int;
 use super::snapshot::Snapshot;
 use super::{error, params, Gcs};
-use crate::controller::{validate_settings, CommandError, ControllerConfig, State};
+use crate::controller::{validate_change, ControllerConfig, State};
 
 impl Gcs {
     fn spa(&mut self, args: &[&[u8]], cfg: &mut ControllerConfig) -> GcsResult {
@@ -34,7 +35,7 @@ impl Gcs {
                 return Err(error::PARAM_OUT_OF_RANGE);
             }
         }
-        settable(cfg, &new).map_err(|_| error::PARAM_OUT_OF_RANGE)?;
+        validate_change(cfg, &new).map_err(|_| error::PARAM_OUT_OF_RANGE)?;
         *cfg = new;
         Ok(())
     }
@@ -93,69 +94,66 @@ pub(super) fn hpa_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
     Ok(())
 }
 
-pub(super) fn tmn_query(gcs: &mut Gcs, c: Query) -> GcsResult {
+/// The rows the PI-named commands set and show: their ids, units and scaling are the table's,
+/// as for `SPA`/`SPA?`.
+const VEL_ROW: &params::Param = params::row(0xA);
+const ACC_ROW: &params::Param = params::row(0xB);
+const DEC_ROW: &params::Param = params::row(0xC);
+const TMX_ROW: &params::Param = params::row(0x15);
+const TMN_ROW: &params::Param = params::row(0x30);
+
+/// `TMN?`, `TMX?`: a length row as `SPA?` shows it (mm, six decimals).
+fn travel_query(gcs: &mut Gcs, p: &params::Param, c: Query) -> GcsResult {
     let Query { args, ctl, out, .. } = c;
-    gcs.axis_query(args, out, |out| out.mm(ctl.config().travel_min_nm))?;
+    let v = (p.get)(ctl.config());
+    gcs.axis_query(args, out, |out| {
+        params::write_gcs(out, p, v);
+    })?;
     Ok(())
 }
 
+pub(super) fn tmn_query(gcs: &mut Gcs, c: Query) -> GcsResult {
+    travel_query(gcs, TMN_ROW, c)
+}
+
 pub(super) fn tmx_query(gcs: &mut Gcs, c: Query) -> GcsResult {
+    travel_query(gcs, TMX_ROW, c)
+}
+
+/// `VEL?`, `ACC?`, `DEC?`: a motion-limit row in the protocol's unit, about seven digits.
+fn motion_limit_query(gcs: &mut Gcs, p: &params::Param, c: Query) -> GcsResult {
     let Query { args, ctl, out, .. } = c;
-    gcs.axis_query(args, out, |out| out.mm(ctl.config().travel_max_nm))?;
+    let v = (p.get)(ctl.config());
+    gcs.axis_query(args, out, |out| {
+        params::write_short(out, p, v);
+    })?;
     Ok(())
 }
 
 pub(super) fn vel_query(gcs: &mut Gcs, c: Query) -> GcsResult {
-    let Query { args, ctl, out, .. } = c;
-    let v = f64::from(ctl.config().velocity_max_nm_s / 1e6);
-    gcs.axis_query(args, out, |out| out.general(v))?;
-    Ok(())
+    motion_limit_query(gcs, VEL_ROW, c)
 }
 
 pub(super) fn acc_query(gcs: &mut Gcs, c: Query) -> GcsResult {
-    let Query { args, ctl, out, .. } = c;
-    let v = f64::from(ctl.config().accel_max_nm_s2 / 1e6);
-    gcs.axis_query(args, out, |out| out.general(v))?;
-    Ok(())
+    motion_limit_query(gcs, ACC_ROW, c)
 }
 
 pub(super) fn dec_query(gcs: &mut Gcs, c: Query) -> GcsResult {
-    let Query { args, ctl, out, .. } = c;
-    let v = f64::from(ctl.config().decel_max_nm_s2 / 1e6);
-    gcs.axis_query(args, out, |out| out.general(v))?;
-    Ok(())
+    motion_limit_query(gcs, DEC_ROW, c)
 }
 
-/// Whether the controller takes `new` in place of `old` (as `Controller::set_config` checks
-/// them): the settings in range together, and what the hardware fixes (loop and DAC rates, DAC
-/// range, encoder resolution, motor table) unchanged.
-fn settable(old: &ControllerConfig, new: &ControllerConfig) -> Result<(), CommandError> {
-    if new.loop_hz != old.loop_hz
-        || new.dac != old.dac
-        || new.encoder_nm_per_count != old.encoder_nm_per_count
-        || new.motor != old.motor
-    {
-        return Err(CommandError::InvalidValue);
-    }
-    validate_settings(new)
-}
-
-/// `VEL`, `ACC`, `DEC`: one of the closed-loop motion limits, each pair checked as the whole
-/// configuration it would make.
-fn motion_limit(name: &str, c: Settings) -> GcsResult {
+/// `VEL`, `ACC`, `DEC`: one of the closed-loop motion limits, as `SPA` sets its row (the
+/// table's scaling and range), with the command's own error code; each pair checked as the
+/// whole configuration it would make.
+fn motion_limit(p: &params::Param, bad: i32, c: Settings) -> GcsResult {
     let Settings { args, cfg } = c;
-    let bad = if name == "VEL" { error::VEL_OUT_OF_LIMITS } else { error::PARAM_OUT_OF_RANGE };
-    // Each pair's value is checked as the whole configuration it would make.
     let new = pairs(args, |t| {
-        let x = to_f32(&number(t)?).map(|x| x * 1e6).filter(|x| x.is_finite() && *x > 0.0);
-        let x = x.ok_or(bad)?;
+        let x = params::from_gcs(p, &number(t)?).ok_or(bad)?;
         let mut new = *cfg;
-        match name {
-            "VEL" => new.velocity_max_nm_s = x,
-            "ACC" => new.accel_max_nm_s2 = x,
-            _ => new.decel_max_nm_s2 = x,
+        if !(p.set)(&mut new, x) {
+            return Err(bad);
         }
-        settable(cfg, &new).map_err(|_| bad)?;
+        validate_change(cfg, &new).map_err(|_| bad)?;
         Ok(new)
     })?;
     *cfg = new;
@@ -163,15 +161,15 @@ fn motion_limit(name: &str, c: Settings) -> GcsResult {
 }
 
 pub(super) fn vel(_gcs: &mut Gcs, c: Settings) -> GcsResult {
-    motion_limit("VEL", c)
+    motion_limit(VEL_ROW, error::VEL_OUT_OF_LIMITS, c)
 }
 
 pub(super) fn acc(_gcs: &mut Gcs, c: Settings) -> GcsResult {
-    motion_limit("ACC", c)
+    motion_limit(ACC_ROW, error::PARAM_OUT_OF_RANGE, c)
 }
 
 pub(super) fn dec(_gcs: &mut Gcs, c: Settings) -> GcsResult {
-    motion_limit("DEC", c)
+    motion_limit(DEC_ROW, error::PARAM_OUT_OF_RANGE, c)
 }
 
 pub(super) fn spa(gcs: &mut Gcs, c: Settings) -> GcsResult {
