@@ -6,43 +6,15 @@
 
 use crate::controller::{ControllerConfig, ReferenceSignal, DAC_SAMPLES_PER_STEP};
 use crate::generator::DacConfig;
-use crate::model::MotorConstants;
 use crate::motor_table::PROTOTYPE_MOTOR;
 use crate::sensors::PreloadCalibration;
-use crate::Fx;
 
 /// DAC sample rate of the drive (samples/s per channel).
 pub const DAC_RATE_HZ: u32 = 200_000;
 /// Control loop rate: one controller step per [`DAC_SAMPLES_PER_STEP`] DAC samples.
 pub const LOOP_HZ: u32 = DAC_RATE_HZ / DAC_SAMPLES_PER_STEP as u32;
 
-/// Highest preload at which the drive still lifts the foot off at full voltage: above it the
-/// foot never leaves the slider and the motor blocks (physics.md §2).
-pub fn full_contact_preload_n(cfg: &ControllerConfig) -> f32 {
-    cfg.motor
-        .full_contact_preload_n(
-            Fx::saturating_from_num(cfg.max_drive_v),
-            Fx::saturating_from_num(cfg.drive_freq_hz / 1000.0),
-        )
-        .to_num()
-}
-
-/// What the defaults depend on besides the settings table: the hardware the firmware is built
-/// for (host-sim derives one from a parameter file). The rows that take their default from it
-/// say how (`hardware(..)` in [`crate::settings::SETTINGS`]).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Hardware {
-    /// Control loop rate: one controller step per [`DAC_SAMPLES_PER_STEP`] DAC samples.
-    pub loop_hz: u32,
-    /// DAC and amplifier: output range, sample rate, drive band, slew limit.
-    pub dac: DacConfig,
-    /// The motor table.
-    pub motor: MotorConstants,
-    pub encoder_nm_per_count: u32,
-    /// Force cell: newtons per ADC word and the full-scale word.
-    pub force_cell_newton_per_word: f32,
-    pub force_cell_max_word: u16,
-}
+pub use crate::hardware::{full_contact_preload_n, Hardware};
 
 /// The reference board with the prototype motor: 12-bit DAC at 200 kS/s into a 0–100 V
 /// amplifier, 50 nm encoder, 12-bit force-cell word over 0–50 N.

@@ -21,6 +21,7 @@ pub mod defaults;
 pub mod fastmath;
 pub mod gcs;
 pub mod generator;
+pub mod hardware;
 pub mod inertia;
 pub mod model;
 pub mod motor_table;

@@ -23,7 +23,12 @@
 //! for the previous layout (see `storage`).
 
 use crate::controller::{ControllerConfig, ReferenceSignal, MAX_TRAVEL_NM};
-use crate::defaults::Hardware;
+use crate::hardware::Hardware;
+
+/// The first record format from the settings table (version 1 was written before it): a stored
+/// row without a `since` of its own is in every record from this one on
+/// ([`crate::storage::VERSION`] follows from the rows).
+pub const FIRST_TABLE_VERSION: u16 = 2;
 
 /// A setting's value in its field's own type, widened: f32 fields as `F32`, every integer field
 /// (u16, u32, i32, i64, bool as 0/1, an enum as its code) as `Int`.
@@ -300,7 +305,7 @@ fn from_hardware<T>(get: fn(&Hardware, &ControllerConfig) -> T, hw: &Hardware, c
 /// unit, scale, range, ReadOnly, description`.
 macro_rules! setting {
     (@since) => {
-        crate::storage::FIRST_TABLE_VERSION
+        FIRST_TABLE_VERSION
     };
     (@since $since:literal) => {
         $since
@@ -324,7 +329,7 @@ macro_rules! setting {
             // Follows from other fields: nothing to set.
             default: DefaultValue::Hardware($what, |_: &Hardware, _: &mut ControllerConfig| {}),
             keep: Keep::ReadOnly,
-            since: crate::storage::FIRST_TABLE_VERSION,
+            since: FIRST_TABLE_VERSION,
             invalidates: Invalidates::NOTHING,
             stored: false,
             read_only: true,
@@ -472,7 +477,7 @@ settings! {
     (0x100F, "Preload", preload_min_n: f32 = 3.0;
         "N", 1.0, NON_NEGATIVE, Stored, "Preload window minimum"),
     (0x1010, "Preload", preload_max_n: f32 =
-        hardware(|_, c| crate::defaults::full_contact_preload_n(c),
+        hardware(|_, c| crate::hardware::full_contact_preload_n(c),
             "the highest preload at which full drive still lifts the foot off, physics.md §2");
         "N", 1.0, NON_NEGATIVE, Stored, "Preload window maximum"),
     (0x1011, "Preload", preload.zero_word: u16 = 0;

@@ -28,6 +28,7 @@
 //! resolution (read-only, so always the build's) and the removed fine-mode gain are skipped.
 
 use crate::controller::{validate_settings, Controller, ControllerConfig};
+pub use crate::settings::FIRST_TABLE_VERSION;
 use crate::settings::{Setting, Ty, Value, SETTINGS};
 
 /// `"PZDP"` read as a little-endian u32.
@@ -36,9 +37,6 @@ pub const MAGIC: u32 = u32::from_le_bytes(*b"PZDP");
 /// more than this). Removing or reordering a stored setting or changing its type needs a new
 /// version by hand and [`decode`] taught the old layout.
 pub const VERSION: u16 = newest_since();
-/// The first format from the settings table (version 1 was written before it): a stored row
-/// without a `since` of its own is in every record from this one on.
-pub const FIRST_TABLE_VERSION: u16 = 2;
 const HEADER_LEN: usize = 8;
 const CRC_LEN: usize = 4;
 
