@@ -41,7 +41,7 @@ from pipython.pidevice.interfaces.pisocket import PISocket
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, HERE)
-from test_pipython import quiet_double_close  # noqa: E402
+from test_pipython import quiet_double_close, start_server  # noqa: E402
 
 FIRMWARE = os.path.join(ROOT, "host-sim", "params", "prototype.toml")
 TARGET_MM = 1.0
@@ -71,15 +71,8 @@ def set_param(text, section, key, value):
 
 
 def serve(binary, truth_file, load):
-    proc = subprocess.Popen(
-        [binary, "serve", "--tcp", "127.0.0.1:0", "--duration-s", "300", "--params", truth_file,
-         "--firmware-params", FIRMWARE, "--load-n", load],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
-    line = proc.stdout.readline()
-    if not line.startswith("listening on "):
-        proc.kill()
-        raise SystemExit(f"host-sim serve did not start: {line!r}")
-    return proc, int(line.rsplit(":", 1)[1])
+    return start_server(binary, "--params", truth_file, "--firmware-params", FIRMWARE, "--load-n", load,
+                        duration_s=300)
 
 
 def stop(proc):

@@ -19,9 +19,10 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 TOLERANCE_MM = 0.2e-3  # 0.2 µm
 
 
-def start_server(binary):
+def start_server(binary, *extra, duration_s=110):
+    """`host-sim serve` on a free port with `extra` arguments; returns the process and the port."""
     proc = subprocess.Popen(
-        [binary, "serve", "--tcp", "127.0.0.1:0", "--duration-s", "110"],
+        [binary, "serve", "--tcp", "127.0.0.1:0", "--duration-s", str(duration_s), *extra],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
