@@ -152,6 +152,7 @@ impl ControllerConfig {
             stall_time_s: self.stall_time_s,
             encoder_jump_counts: self.encoder_jump_counts,
             max_drive_v: self.max_drive_v,
+            nm_per_count: self.encoder_nm_per_count as f32,
         }
     }
 

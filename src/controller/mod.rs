@@ -88,7 +88,9 @@ impl FaultCode {
             FaultCode::PreloadSensor => "preload sensor reading invalid",
             FaultCode::EncoderJump => "encoder jump",
             FaultCode::Overrun => "control loop overrun: drive disabled",
-            FaultCode::EncoderLoss => "encoder loss: fine corrections not seen by the encoder",
+            FaultCode::EncoderLoss => {
+                "encoder loss: the drive moved the slider and the encoder saw none of it"
+            }
         }
     }
 }

@@ -37,16 +37,23 @@ impl Controller {
             // Open-loop motion: no reference to follow, no stall judgement.
             return;
         }
+        let coarse = matches!(self.mode, Mode::Coarse);
+        let dir = f32::from(self.generator.direction());
         let period = ClosedLoopPeriod {
             err_nm: (self.motion.profile().position_nm() - self.position_nm()) as f32,
-            dir: f32::from(self.generator.direction()),
+            dir,
             speed_nm_s: self.feedback.speed_nm_s(),
             drive_v: self.drive_v,
-            coarse: matches!(self.mode, Mode::Coarse),
+            coarse,
             foot_speed_nm_s: self.cached_limits().map_or(0.0, |(_, v0)| v0 * 1e6),
             dt_s: self.dt_s,
+            counted: self.feedback.encoder().is_some_and(|e| e.last_delta() != 0),
+            swing_v: self.fine.sine_swing_v(self.generator.amplitude_v()),
+            mass_kg: self.moving_mass_kg(),
         };
-        if let Some(code) = self.supervisor.update(&period) {
+        let table = self.model.table.as_ref();
+        let thrust_at = |swing_v: f32, speed_nm_s: f32| table.map(|t| t.thrust_n(swing_v, speed_nm_s * 1e-6));
+        if let Some(code) = self.supervisor.update(&period, thrust_at) {
             self.trip(code);
         }
     }

@@ -1,8 +1,19 @@
-//! The supervisor's judgement of closed-loop motion (following error, stall) and the counts the
-//! protocol watches (faults, limit-switch stops, failed referencing). The controller reads the
+//! The supervisor's judgement of closed-loop motion (following error, stall, an encoder that
+//! stopped counting under a coarse drive) and the counts the protocol watches (faults, limit-switch stops, failed referencing). The controller reads the
 //! sensors and trips the fault it returns (`supervision.rs`).
 
 use super::FaultCode;
+
+/// Encoder-loss watch in the coarse mode: the model's own carriage, pushed from rest by the drive
+/// since the encoder last counted, may run this many counts before silence counts as a loss.
+/// 40 counts (2 µm at 50 nm) is a tenth of the fine window's reach and 0.7 ms of the 1 kg
+/// carriage's cruise; a slider the model misjudges by 2× still shows 20 counts.
+const LOSS_COUNTS: f32 = 40.0;
+/// ... and only while the drive is at least this share of the largest: near the foot's slip
+/// threshold the model's crawl is least certain (a 0.3 kg carriage at 5 N stood 550 nm short of
+/// a target at 13 V, where the model has it moving at 0.2 mm/s, until the approach push moved
+/// it; `coarse.rs`).
+const LOSS_MIN_DRIVE_SHARE: f32 = 0.3;
 
 /// The limits the supervisor judges by.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -12,6 +23,8 @@ pub(super) struct SupervisorConfig {
     pub(super) encoder_jump_counts: i32,
     /// Largest drive (V): "near full" and "full" drive are shares of it.
     pub(super) max_drive_v: f32,
+    /// The encoder's resolution (nm per count).
+    pub(super) nm_per_count: f32,
 }
 
 /// One closed-loop period as the supervisor sees it.
@@ -28,6 +41,78 @@ pub(super) struct ClosedLoopPeriod {
     /// The model's no-load speed at full drive (nm/s; 0 before a table).
     pub(super) foot_speed_nm_s: f32,
     pub(super) dt_s: f32,
+    /// The encoder counted this period.
+    pub(super) counted: bool,
+    /// The sine's peak-to-peak swing the amplifier gives the drive (V): what the model's thrust
+    /// is taken at.
+    pub(super) swing_v: f32,
+    /// The moving mass the model's carriage has (kg).
+    pub(super) mass_kg: f32,
+}
+
+/// The model's mean thrust along the drive at a swing (V) and a slider speed along the drive
+/// (nm/s), in N; None without a model table. The supervisor asks only in the periods it needs it.
+pub(super) trait ThrustAt: Fn(f32, f32) -> Option<f32> {}
+impl<F: Fn(f32, f32) -> Option<f32>> ThrustAt for F {}
+
+/// The coarse mode's encoder-loss watch: where the model's carriage would be had it started at
+/// half the measured speed when the encoder last counted (the speed filter lags, and the model
+/// may be 2× off), pushed by what the model's thrust has gained since. The load is taken as what
+/// balanced the drive when the encoder last counted, the model's thrust then: a load the
+/// controller has not learned (a 50 kg carriage starting against an unknown 70 % of its stall
+/// force crept at a count per 3–6 ms, where the model with no load had it run 2 µm) is
+/// counted, and so is none the load observer learns from the silence (it reads a silent
+/// encoder's speed falling to zero as a load: on a 50 kg carriage the stall force within a
+/// millisecond). A slider held by a load still counts as soon as the drive gains on it; a
+/// stuck encoder never does.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+struct LossWatch {
+    speed_nm_s: f32,
+    travel_nm: f32,
+    /// The swing (V) and the measured speed along the drive (nm/s) when the encoder last
+    /// counted, and the model's thrust there once asked for (N): asked for only when the encoder
+    /// falls silent, so a moving slider that counts every period costs no model evaluation.
+    counted_at: (f32, f32),
+    balance_n: Option<f32>,
+}
+
+impl LossWatch {
+    /// One period; true when the model's carriage ran `limit_nm` unseen.
+    fn update(
+        &mut self,
+        p: &ClosedLoopPeriod,
+        driven: bool,
+        limit_nm: f32,
+        thrust_at: impl ThrustAt,
+    ) -> bool {
+        if !p.coarse || p.mass_kg <= 0.0 {
+            *self = LossWatch::default();
+            return false;
+        }
+        if p.counted {
+            let along = p.dir * p.speed_nm_s;
+            let speed_nm_s = (0.5 * along).max(0.0);
+            *self = LossWatch { speed_nm_s, travel_nm: 0.0, counted_at: (p.swing_v, along), balance_n: None };
+            return false;
+        }
+        if !driven {
+            // Below the drive the model is trusted at: no push, and what it ran stays.
+            self.speed_nm_s = 0.0;
+            return false;
+        }
+        let balance = match self.balance_n {
+            Some(b) => Some(b),
+            None => thrust_at(self.counted_at.0, self.counted_at.1),
+        };
+        let (Some(balance), Some(thrust)) = (balance, thrust_at(p.swing_v, self.speed_nm_s)) else {
+            return false;
+        };
+        self.balance_n = Some(balance);
+        let push = thrust - balance;
+        self.speed_nm_s = (self.speed_nm_s + push / p.mass_kg * 1e9 * p.dt_s).max(0.0);
+        self.travel_nm += self.speed_nm_s * p.dt_s;
+        self.travel_nm >= limit_nm
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -45,6 +130,7 @@ pub(super) struct Supervisor {
     limit_stopped: bool,
     /// Referencing searches that ended without finding the mark (wraps).
     reference_failures: u32,
+    loss_watch: LossWatch,
 }
 
 impl Supervisor {
@@ -57,6 +143,7 @@ impl Supervisor {
             limit_stops: 0,
             limit_stopped: false,
             reference_failures: 0,
+            loss_watch: LossWatch::default(),
         }
     }
 
@@ -69,8 +156,9 @@ impl Supervisor {
         delta_counts.abs() > self.cfg.encoder_jump_counts
     }
 
-    /// One closed-loop period: the fault to trip, if any.
-    pub(super) fn update(&mut self, p: &ClosedLoopPeriod) -> Option<FaultCode> {
+    /// One closed-loop period: the fault to trip, if any (`thrust_at`: the model, for the
+    /// encoder-loss watch).
+    pub(super) fn update(&mut self, p: &ClosedLoopPeriod, thrust_at: impl ThrustAt) -> Option<FaultCode> {
         // Stall/slip: the foot is driven near full but the slider does not move the driven way
         // (commanded foot speed against encoder speed). Near full: below it the controller still
         // has thrust to give, and a heavy carriage creeping up to its target against an unknown
@@ -79,6 +167,10 @@ impl Supervisor {
         let max_v = self.cfg.max_drive_v;
         let driving = p.coarse && p.drive_v > 0.9 * max_v;
         let not_following = driving && p.dir * p.speed_nm_s < 0.1 * p.foot_speed_nm_s;
+        let watched = p.drive_v >= LOSS_MIN_DRIVE_SHARE * max_v;
+        if self.loss_watch.update(p, watched, LOSS_COUNTS * self.cfg.nm_per_count, thrust_at) {
+            return Some(FaultCode::EncoderLoss);
+        }
         let err = p.err_nm;
         self.max_following_error_nm = self.max_following_error_nm.max(err.abs());
         if err.abs() > self.cfg.following_error_limit_nm {
@@ -165,6 +257,7 @@ mod tests {
             stall_time_s: 0.01,
             encoder_jump_counts: 100,
             max_drive_v: 100.0,
+            nm_per_count: 50.0,
         })
     }
 
@@ -178,12 +271,34 @@ mod tests {
             coarse: true,
             foot_speed_nm_s: 2.0e6,
             dt_s: DT_S,
+            counted: true,
+            swing_v: drive_v,
+            mass_kg: 1.0,
         }
+    }
+
+    /// No model table.
+    fn no_model(_swing_v: f32, _speed_nm_s: f32) -> Option<f32> {
+        None
+    }
+
+    /// A model whose thrust is a hundredth of the swing (N per V), whatever the speed.
+    fn hundredth_of_the_swing(swing_v: f32, _speed_nm_s: f32) -> Option<f32> {
+        Some(swing_v / 100.0)
     }
 
     /// Periods until `p` repeated trips, at most `limit`.
     fn periods_to_trip(s: &mut Supervisor, p: &ClosedLoopPeriod, limit: u32) -> Option<(u32, FaultCode)> {
-        (1..=limit).find_map(|n| s.update(p).map(|c| (n, c)))
+        periods_to_trip_with(s, p, limit, hundredth_of_the_swing)
+    }
+
+    fn periods_to_trip_with(
+        s: &mut Supervisor,
+        p: &ClosedLoopPeriod,
+        limit: u32,
+        model: impl ThrustAt + Copy,
+    ) -> Option<(u32, FaultCode)> {
+        (1..=limit).find_map(|n| s.update(p, model).map(|c| (n, c)))
     }
 
     #[test]
@@ -219,24 +334,106 @@ mod tests {
         assert_eq!(periods_to_trip(&mut s, &period(95.0, 3.0e5, 0.0), 1000), None);
         // A following period resets the timer: 99 stuck periods, one moving, 99 stuck again.
         for _ in 0..99 {
-            assert_eq!(s.update(&period(95.0, 0.0, 0.0)), None);
+            assert_eq!(s.update_no_model(&period(95.0, 0.0, 0.0)), None);
         }
-        assert_eq!(s.update(&period(95.0, 3.0e5, 0.0)), None);
+        assert_eq!(s.update_no_model(&period(95.0, 3.0e5, 0.0)), None);
         for _ in 0..98 {
-            assert_eq!(s.update(&period(95.0, 0.0, 0.0)), None);
+            assert_eq!(s.update_no_model(&period(95.0, 0.0, 0.0)), None);
         }
     }
 
     #[test]
     fn following_error_beyond_the_limit() {
         let mut s = supervisor();
-        assert_eq!(s.update(&period(50.0, 1.0e6, 9_000.0)), None);
-        assert_eq!(s.update(&period(50.0, 1.0e6, -10_001.0)), Some(FaultCode::FollowingError));
+        assert_eq!(s.update_no_model(&period(50.0, 1.0e6, 9_000.0)), None);
+        assert_eq!(s.update_no_model(&period(50.0, 1.0e6, -10_001.0)), Some(FaultCode::FollowingError));
         assert_eq!(s.max_following_error_nm(), 10_001.0);
         // At full drive towards the reference with the slider not following: a stall.
-        assert_eq!(s.update(&period(96.0, 0.0, 10_001.0)), Some(FaultCode::Stall));
+        assert_eq!(s.update_no_model(&period(96.0, 0.0, 10_001.0)), Some(FaultCode::Stall));
         s.start_move();
         assert_eq!(s.max_following_error_nm(), 0.0);
+    }
+
+    impl Supervisor {
+        fn update_no_model(&mut self, p: &ClosedLoopPeriod) -> Option<FaultCode> {
+            self.update(p, no_model)
+        }
+    }
+
+    /// A coarse period at 50 V of drive (above the watched 30 %) with the sine's swing at
+    /// `swing_v`, the encoder counting or not, the slider standing.
+    fn watched(swing_v: f32, counted: bool) -> ClosedLoopPeriod {
+        ClosedLoopPeriod { counted, swing_v, ..period(50.0, 0.0, 0.0) }
+    }
+
+    #[test]
+    fn a_silent_encoder_trips_when_the_models_carriage_ran_40_counts() {
+        // Balanced at 0.5 N (50 V of swing) when the encoder last counted, then 1.5 N: 1 N on
+        // 1 kg from rest (semi-implicit Euler, 0.1 ms): after n periods n(n+1)/2·a·dt² =
+        // 5·n(n+1) nm, which first reaches 40 counts (2 000 nm) at n = 20.
+        let mut s = supervisor();
+        assert_eq!(s.update(&watched(50.0, true), hundredth_of_the_swing), None);
+        let (n, code) = periods_to_trip(&mut s, &watched(150.0, false), 1000).unwrap();
+        assert_eq!(code, FaultCode::EncoderLoss);
+        assert_eq!(n, 20);
+    }
+
+    #[test]
+    fn a_count_no_gain_over_the_balance_a_low_drive_or_no_model_is_no_encoder_loss() {
+        let mut s = supervisor();
+        assert_eq!(s.update(&watched(50.0, true), hundredth_of_the_swing), None);
+        // 19 silent periods, then a count: the watch starts over, and 19 more do not trip.
+        for _ in 0..19 {
+            assert_eq!(s.update(&watched(150.0, false), hundredth_of_the_swing), None);
+        }
+        assert_eq!(s.update(&watched(150.0, true), hundredth_of_the_swing), None);
+        assert_eq!(s.update(&watched(50.0, true), hundredth_of_the_swing), None);
+        for _ in 0..19 {
+            assert_eq!(s.update(&watched(150.0, false), hundredth_of_the_swing), None);
+        }
+        // The drive no stronger than when it last counted (a load the model does not know
+        // holds the slider): never.
+        let mut s = supervisor();
+        assert_eq!(s.update(&watched(150.0, true), hundredth_of_the_swing), None);
+        assert_eq!(periods_to_trip(&mut s, &watched(150.0, false), 10_000), None);
+        // Below 30 % of the largest drive, or without a model table: never.
+        let mut s = supervisor();
+        let low = |counted| ClosedLoopPeriod { counted, swing_v: 150.0, ..period(29.0, 0.0, 0.0) };
+        assert_eq!(s.update(&ClosedLoopPeriod { swing_v: 50.0, ..low(true) }, hundredth_of_the_swing), None);
+        assert_eq!(periods_to_trip(&mut s, &low(false), 10_000), None);
+        let mut s = supervisor();
+        assert_eq!(s.update(&watched(50.0, true), no_model), None);
+        assert_eq!(periods_to_trip_with(&mut s, &watched(150.0, false), 10_000, no_model), None);
+    }
+
+    #[test]
+    fn a_silent_encoder_at_cruise_trips_from_half_the_measured_speed() {
+        // Last counted at 2 mm/s, the drive unchanged: the model's carriage starts at 1 mm/s
+        // and, with nothing gained over the balance, runs 2 000 nm in 2 ms = 20 periods.
+        let mut s = supervisor();
+        let cruise = |counted| ClosedLoopPeriod { counted, ..period(80.0, 2.0e6, 0.0) };
+        assert_eq!(s.update(&cruise(true), hundredth_of_the_swing), None);
+        let (n, code) = periods_to_trip(&mut s, &cruise(false), 1000).unwrap();
+        assert_eq!(code, FaultCode::EncoderLoss);
+        assert!((19..=21).contains(&n), "{n}");
+    }
+
+    #[test]
+    fn a_counting_slider_costs_no_model_evaluation() {
+        let calls = core::cell::Cell::new(0u32);
+        let counting = |swing_v: f32, speed: f32| {
+            calls.set(calls.get() + 1);
+            hundredth_of_the_swing(swing_v, speed)
+        };
+        let mut s = supervisor();
+        for _ in 0..100 {
+            assert_eq!(s.update(&watched(80.0, true), counting), None);
+        }
+        assert_eq!(calls.get(), 0);
+        // The first silent period asks for the balance and the thrust, each later one the thrust.
+        s.update(&watched(80.0, false), counting);
+        s.update(&watched(80.0, false), counting);
+        assert_eq!(calls.get(), 3);
     }
 
     #[test]

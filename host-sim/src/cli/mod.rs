@@ -253,6 +253,7 @@ mod tests {
         }
         let fault = |f: FaultCase| match f {
             FaultCase::EncoderJump => FaultArg::EncoderJump,
+            FaultCase::EncoderLoss => FaultArg::EncoderLoss,
             FaultCase::PreloadLoss => FaultArg::PreloadLoss,
             FaultCase::Stall => FaultArg::Stall,
         };

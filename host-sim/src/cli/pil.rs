@@ -62,6 +62,8 @@ impl PilArgs {
 pub enum FaultArg {
     /// The encoder count jumps by 5000 counts (250 µm) 20 ms into the move.
     EncoderJump,
+    /// The encoder stops counting 20 ms into the move (the coarse mode's encoder-loss watch).
+    EncoderLoss,
     /// The preload falls to 2 N (below the window) 20 ms into the move.
     PreloadLoss,
     /// A load of twice the stall force opposes the move from the start.
@@ -72,6 +74,7 @@ impl From<FaultArg> for FaultCase {
     fn from(a: FaultArg) -> Self {
         match a {
             FaultArg::EncoderJump => FaultCase::EncoderJump,
+            FaultArg::EncoderLoss => FaultCase::EncoderLoss,
             FaultArg::PreloadLoss => FaultCase::PreloadLoss,
             FaultArg::Stall => FaultCase::Stall,
         }

@@ -26,6 +26,8 @@ use std::time::Duration;
 pub enum FaultCase {
     /// The encoder count jumps by 5000 counts (250 µm) 20 ms into the move.
     EncoderJump,
+    /// The encoder stops counting 20 ms into the move (the coarse mode's encoder-loss watch).
+    EncoderLoss,
     /// The preload falls to 2 N (below the window) 20 ms into the move.
     PreloadLoss,
     /// A load of twice the stall force opposes the move from the start.
@@ -386,6 +388,7 @@ pub fn run(p: &Params, args: &PilOptions, elf: &Path) -> Result<PilResult> {
         if !injected && t >= 0.02 {
             match args.fault {
                 Some(FaultCase::EncoderJump) => sil.encoder_offset_counts += 5_000,
+                Some(FaultCase::EncoderLoss) => sil.frozen_encoder_counts = Some(sil.plant.encoder_counts()),
                 Some(FaultCase::PreloadLoss) => sil.plant.set_preload_n(2.0),
                 _ => {}
             }

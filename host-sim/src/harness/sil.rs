@@ -134,6 +134,9 @@ pub struct Sil {
     dac_period_s: f64,
     /// Injected encoder disturbance (counts), for fault tests.
     pub encoder_offset_counts: i64,
+    /// A lost encoder (cable off, read head dirty): the counter keeps this count whatever the
+    /// slider does. None: the encoder follows the slider.
+    pub frozen_encoder_counts: Option<i64>,
     /// Encoder index mark on the scale (plant slider position, m): the index input is set in
     /// the period in which the slider crosses it. None: the scale has no index.
     pub index_position_m: Option<f64>,
@@ -160,6 +163,7 @@ impl Sil {
             plant_steps_per_period: (period_s / p.integrator.step_s).round() as u32,
             dac_period_s: 1.0 / p.amplifier.dac_rate_hz,
             encoder_offset_counts: 0,
+            frozen_encoder_counts: None,
             index_position_m: None,
             limits_m: None,
             last_slider_m: 0.0,
@@ -173,7 +177,9 @@ impl Sil {
 
     /// What the board reads now.
     pub fn inputs(&mut self) -> Inputs {
-        let counts = self.plant.encoder_counts() + self.encoder_offset_counts;
+        let counts = self
+            .frozen_encoder_counts
+            .unwrap_or_else(|| self.plant.encoder_counts() + self.encoder_offset_counts);
         let x = self.plant.slider_position_m();
         let index = self.index_position_m.is_some_and(|xi| (self.last_slider_m < xi) != (x < xi));
         self.last_slider_m = x;
