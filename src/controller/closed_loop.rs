@@ -39,23 +39,23 @@ impl Controller {
             && (self.motion.profile().target_nm() - pos).abs() <= self.cfg.on_target_window_nm;
         self.motion.count_on_target(within, self.dt_s);
 
-        match self.mode {
+        match self.status.mode {
             Mode::Coarse => {
                 if !self.hand_to_fine(to_target) {
                     self.coarse(err);
                 }
             }
             Mode::FineEntering => {
-                self.generator.set_amplitude_v(0.0);
-                if self.generator.amplitude_v() == 0.0 {
+                self.drive.generator.set_amplitude_v(0.0);
+                if self.drive.generator.amplitude_v() == 0.0 {
                     // No check pending; the misses carry over ([`super::fine::FineMode`]).
-                    self.mode = Mode::Fine(FineStep::at(self.fine.offset_v()));
+                    self.status.mode = Mode::Fine(FineStep::at(self.fine.offset_v()));
                 }
             }
             Mode::Fine(_) => {
                 let fine_room_nm = self.fine_room_v() * self.model.fine_nm_per_v;
                 if to_target.abs() > fine_room_nm.max(self.cfg.fine_window_nm) * 1.5 {
-                    self.mode = Mode::Coarse;
+                    self.status.mode = Mode::Coarse;
                     return;
                 }
                 self.fine(err);
@@ -115,7 +115,7 @@ impl Controller {
     fn hand_to_fine(&mut self, to_target: f32) -> bool {
         let early = !self.motion.profile().done()
             && self.stop_with_sine_quiet_nm(to_target).is_some_and(|stop| {
-                let swing = self.model.table.as_ref().map_or(0.0, |t| t.swing_nm(self.drive_v));
+                let swing = self.model.table.as_ref().map_or(0.0, |t| t.swing_nm(self.drive.commanded_v));
                 let rest = to_target - stop;
                 self.fine_takes(rest + swing) && self.fine_takes(rest - swing)
             });
@@ -127,9 +127,9 @@ impl Controller {
             self.motion.profile_mut().reset(target);
         }
         if early || (self.motion.profile().done() && self.fine_takes(to_target)) {
-            self.mode = Mode::FineEntering;
-            self.generator.set_amplitude_v(0.0);
-            self.drive_v = 0.0;
+            self.status.mode = Mode::FineEntering;
+            self.drive.generator.set_amplitude_v(0.0);
+            self.drive.commanded_v = 0.0;
             return true;
         }
         false

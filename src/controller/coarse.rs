@@ -21,7 +21,7 @@ impl Controller {
     /// model's thrust at the set amplitude was too high there: a 5 kg carriage's speed-up from a
     /// hold measured it as mass (`mass.rs`; 8.8–9.1 kg against 7.7 from rest, μ 15 % low).
     fn swing_v(&self) -> f32 {
-        self.fine.sine_swing_v(self.generator.amplitude_v())
+        self.fine.sine_swing_v(self.drive.generator.amplitude_v())
     }
 
     pub(super) fn coarse(&mut self, err_nm: f32) {
@@ -40,7 +40,7 @@ impl Controller {
             dir = signed_dir;
             volts
         };
-        self.drive_v = volts;
+        self.drive.commanded_v = volts;
         self.drive_sine(volts, dir);
     }
 
@@ -55,19 +55,22 @@ impl Controller {
         let braking = self.motion.accel_ref_nm_s2() * v_ref < 0.0;
         let counted = self.load.counted_along_n(f32::from(dir), braking);
         let load_along = counted + f32::from(dir) * mass * self.motion.accel_ref_nm_s2() * 1e-9;
-        self.model.table.as_ref().map_or(0.0, |t| t.voltage_for(v_cmd.abs() * 1e-6, load_along, self.drive_v))
+        self.model
+            .table
+            .as_ref()
+            .map_or(0.0, |t| t.voltage_for(v_cmd.abs() * 1e-6, load_along, self.drive.commanded_v))
     }
 
     /// This period's evidence for the load observer (the thrust model run forwards: what the
     /// applied drive pushes at the measured speed, less what accelerated the mass, is what the
     /// load took); the same thrust times the move's speed-up ([`super::mass`]).
     fn load_sample(&mut self, err_nm: f32, stall: f32) -> LoadSample {
-        let d = f32::from(self.generator.direction());
+        let d = f32::from(self.drive.generator.direction());
         // Observe only while the drive pushes the way the slider moves at a fair speed: the
         // model is least certain when braking and near standstill (stick).
         let backslide = self.state() == State::Moving && d * self.feedback.speed_nm_s() < -50_000.0;
         let observe = (d * self.feedback.speed_nm_s() > 200_000.0 || backslide)
-            && self.drive_v > 0.2 * self.cfg.max_drive_v;
+            && self.drive.commanded_v > 0.2 * self.cfg.max_drive_v;
         let applied = if observe || self.mass.timing() {
             self.model
                 .table
@@ -120,9 +123,9 @@ impl Controller {
         // at the old 45 ms for a ±23 V hold offset, a move started from a hold lost thrust over
         // its whole speed-up (1 mm: 0.9–2.8 µm peak following error against 0.55 from rest).
         let offset = self.fine.recentre(self.dt_s);
-        self.generator.ramp_static_offsets_v([offset; 2], DAC_SAMPLES_PER_STEP as u32);
-        self.generator.set_direction(dir);
-        self.generator.set_frequency_hz(self.coarse_frequency_hz());
-        self.generator.set_amplitude_v(volts);
+        self.drive.generator.ramp_static_offsets_v([offset; 2], DAC_SAMPLES_PER_STEP as u32);
+        self.drive.generator.set_direction(dir);
+        self.drive.generator.set_frequency_hz(self.coarse_frequency_hz());
+        self.drive.generator.set_amplitude_v(volts);
     }
 }

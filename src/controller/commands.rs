@@ -49,18 +49,18 @@ impl Controller {
         if on {
             self.check_preload()?;
         }
-        self.servo = on;
+        self.status.servo = on;
         if on {
             self.fine.forget_misses();
-            if let Mode::Fine(f) = &mut self.mode {
+            if let Mode::Fine(f) = &mut self.status.mode {
                 f.forget_check();
             }
             let here = self.position_nm();
             self.motion.profile_mut().reset(here);
             self.enter_hold();
         } else {
-            self.activity = Activity::Idle;
-            self.generator.ramp_to_quiet();
+            self.status.activity = Activity::Idle;
+            self.drive.generator.ramp_to_quiet();
         }
         Ok(())
     }
@@ -72,7 +72,7 @@ impl Controller {
         if self.state() == State::Referencing {
             return Err(CommandError::Busy);
         }
-        if !self.servo {
+        if !self.status.servo {
             return Err(CommandError::ServoOff);
         }
         if target_nm < self.cfg.travel_min_nm || target_nm > self.cfg.travel_max_nm {
@@ -90,18 +90,18 @@ impl Controller {
         self.frequency.start_move();
         self.supervisor.start_move();
         self.motion.restart_on_target();
-        self.activity = Activity::Moving;
+        self.status.activity = Activity::Moving;
         let to_target = (target_nm - self.position_nm()) as f32;
-        if !matches!(self.mode, Mode::Coarse) && to_target.abs() > self.cfg.fine_window_nm {
-            self.mode = Mode::Coarse;
-        } else if matches!(self.mode, Mode::Coarse)
-            && self.generator.amplitude_v() == 0.0
+        if !matches!(self.status.mode, Mode::Coarse) && to_target.abs() > self.cfg.fine_window_nm {
+            self.status.mode = Mode::Coarse;
+        } else if matches!(self.status.mode, Mode::Coarse)
+            && self.drive.generator.amplitude_v() == 0.0
             && self.fine_takes(to_target)
         {
             // A small move with the sine quiet (a hold just after the servo came on) is the
             // fine mode's: in the coarse mode a drive period carries a 0.1 kg carriage 300 nm,
             // and its 100 nm step from there overshot 268 nm.
-            self.mode = Mode::FineEntering;
+            self.status.mode = Mode::FineEntering;
         }
         Ok(())
     }
@@ -165,7 +165,7 @@ impl Controller {
         if let State::Fault(code) = self.state() {
             return Err(CommandError::Faulted(code));
         }
-        if self.servo {
+        if self.status.servo {
             return Err(CommandError::ServoOn);
         }
         if self.state() == State::Referencing {
@@ -189,16 +189,16 @@ impl Controller {
             frequency_hz,
             direction: if cycles > 0 { 1 } else { -1 },
         };
-        self.mode = Mode::Coarse;
-        self.activity = Activity::OpenLoop(run);
+        self.status.mode = Mode::Coarse;
+        self.status.activity = Activity::OpenLoop(run);
         self.supervisor.start_run();
         Ok(())
     }
 
     pub fn clear_fault(&mut self) {
         if matches!(self.state(), State::Fault(_)) {
-            self.activity = Activity::Idle;
-            self.servo = false;
+            self.status.activity = Activity::Idle;
+            self.status.servo = false;
             let here = self.position_nm();
             self.motion.profile_mut().reset(here);
         }
@@ -209,7 +209,7 @@ impl Controller {
         self.feedback.set_position_nm(position_nm);
         let here = self.position_nm();
         self.motion.profile_mut().reset(here);
-        self.referenced = true;
+        self.status.referenced = true;
     }
 
     /// Moves open loop toward negative positions until the encoder index is seen, then sets the
@@ -226,9 +226,9 @@ impl Controller {
             return Err(CommandError::Faulted(code));
         }
         self.check_preload()?;
-        self.activity = Activity::Referencing(ReferenceSearch::start());
-        self.mode = Mode::Coarse;
-        self.referenced = false;
+        self.status.activity = Activity::Referencing(ReferenceSearch::start());
+        self.status.mode = Mode::Coarse;
+        self.status.referenced = false;
         Ok(())
     }
 }

@@ -220,7 +220,7 @@ impl Controller {
     /// Fine mode: the foot sticks to the slider and carries it by the static stroke
     /// ([`FineMode::update`]).
     pub(super) fn fine(&mut self, err_nm: f32) {
-        let Mode::Fine(f) = self.mode else { return };
+        let Mode::Fine(f) = self.status.mode else { return };
         let period = FinePeriod {
             err_nm,
             counts: self.feedback.encoder().map_or(0, |e| e.counts()),
@@ -232,11 +232,11 @@ impl Controller {
         };
         match self.fine.update(f, &period) {
             FineDecision::Step(f) => {
-                self.mode = Mode::Fine(f);
+                self.status.mode = Mode::Fine(f);
                 let offset = self.fine.offset_v();
-                self.generator.ramp_static_offsets_v([offset; 2], DAC_SAMPLES_PER_STEP as u32);
+                self.drive.generator.ramp_static_offsets_v([offset; 2], DAC_SAMPLES_PER_STEP as u32);
             }
-            FineDecision::Coarse => self.mode = Mode::Coarse,
+            FineDecision::Coarse => self.status.mode = Mode::Coarse,
             FineDecision::Trip(code) => self.trip(code),
         }
     }

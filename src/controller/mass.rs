@@ -204,7 +204,7 @@ impl Controller {
         let v = self.motion.profile().velocity_nm_s();
         let braking = self.motion.accel_ref_nm_s2() * v < 0.0;
         let speeding_up =
-            self.state() == State::Moving && !braking && matches!(self.mode, Mode::Coarse) && v != 0.0;
+            self.state() == State::Moving && !braking && matches!(self.status.mode, Mode::Coarse) && v != 0.0;
         let period = SpeedUpPeriod {
             speeding_up,
             sense: v.signum(),

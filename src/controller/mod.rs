@@ -215,6 +215,25 @@ impl Activity {
     }
 }
 
+/// What the controller is doing, with that activity's own data; how the closed loop drives;
+/// whether the servo is on and the axis referenced.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Status {
+    activity: Activity,
+    mode: Mode,
+    servo: bool,
+    referenced: bool,
+}
+
+/// The drive: the generator that makes the two sines (or the static offsets) and the voltage last
+/// commanded (V peak-to-peak), the inverse model's next hint and what the supervisor and the load
+/// observer call near full drive.
+#[derive(Clone)]
+struct Drive {
+    generator: QuadratureGenerator,
+    commanded_v: f32,
+}
+
 /// `Clone` lets a board answer read-only protocol queries from a copy taken in a short critical
 /// section, instead of holding the control tick off while it formats the reply.
 #[derive(Clone)]
@@ -224,16 +243,11 @@ pub struct Controller {
     dt_s: f32,
     /// The thrust model's table and what it asks for ([`model_cache`]).
     model: ModelSlot,
-    generator: QuadratureGenerator,
-    /// What the controller is doing, with that activity's own data; how the closed loop drives;
-    /// the servo and referencing flags.
-    activity: Activity,
-    mode: Mode,
-    servo: bool,
-    referenced: bool,
-    /// The drive voltage last commanded (V peak-to-peak): the inverse model's next hint, and
-    /// what the supervisor and the load observer call near full drive.
-    drive_v: f32,
+    /// What the controller is doing and how the closed loop drives, the servo and referencing
+    /// flags.
+    status: Status,
+    /// The sine generator and the voltage last commanded of it.
+    drive: Drive,
     // The parts, each with its own state (and settings, cut from `cfg` in `config.rs`):
     /// Encoder, speed and preload readings ([`feedback`]).
     feedback: Feedback,
@@ -263,18 +277,14 @@ impl Controller {
         let mut generator = QuadratureGenerator::new(cfg.dac);
         generator.set_frequency_hz(cfg.drive_freq_hz);
         Ok(Controller {
-            generator,
+            drive: Drive { generator, commanded_v: 0.0 },
             feedback: Feedback::new(cfg.encoder_nm_per_count, cfg.preload),
             motion: Motion::new(),
-            activity: Activity::Idle,
-            mode: Mode::Coarse,
-            servo: false,
-            referenced: false,
+            status: Status { activity: Activity::Idle, mode: Mode::Coarse, servo: false, referenced: false },
             dt_s: 1.0 / cfg.loop_hz as f32,
             load: LoadObserver::new(cfg.load_observer()),
             pi: PlainPi::new(cfg.plain_pi()),
             fine: FineMode::new(cfg.fine_mode()),
-            drive_v: 0.0,
             frequency: FrequencyPolicy::new(cfg.profile_wait_lag_nm),
             model: ModelSlot::new(&cfg, 0),
             mass: MassEstimator::new(cfg.moving_mass_kg),
@@ -284,7 +294,7 @@ impl Controller {
     }
 
     pub fn state(&self) -> State {
-        self.activity.state()
+        self.status.activity.state()
     }
 
     pub fn config(&self) -> &ControllerConfig {
@@ -308,19 +318,19 @@ impl Controller {
     }
 
     pub fn servo(&self) -> bool {
-        self.servo
+        self.status.servo
     }
 
     pub fn referenced(&self) -> bool {
-        self.referenced
+        self.status.referenced
     }
 
     pub fn drive_voltage_v(&self) -> f32 {
-        self.generator.amplitude_v()
+        self.drive.generator.amplitude_v()
     }
 
     pub fn drive_frequency_hz(&self) -> f32 {
-        self.generator.frequency_hz()
+        self.drive.generator.frequency_hz()
     }
 
     /// Common static offset of the fine mode (V).
@@ -329,7 +339,7 @@ impl Controller {
     }
 
     pub fn fine_mode(&self) -> bool {
-        !matches!(self.mode, Mode::Coarse)
+        !matches!(self.status.mode, Mode::Coarse)
     }
 
     pub fn speed_nm_s(&self) -> f32 {
@@ -402,7 +412,7 @@ impl Controller {
     }
 
     fn enter_hold(&mut self) {
-        self.activity = Activity::Holding;
+        self.status.activity = Activity::Holding;
         self.motion.restart_on_target();
     }
 
@@ -410,11 +420,11 @@ impl Controller {
     fn hold_here_or_quiet(&mut self) {
         let here = self.position_nm();
         self.motion.profile_mut().reset(here);
-        if self.servo {
+        if self.status.servo {
             self.enter_hold();
         } else {
-            self.activity = Activity::Idle;
-            self.generator.ramp_to_quiet();
+            self.status.activity = Activity::Idle;
+            self.drive.generator.ramp_to_quiet();
         }
     }
 
@@ -438,20 +448,20 @@ impl Controller {
             State::Moving | State::Holding => self.regulate(),
             State::Referencing => self.reference(inputs),
             State::OpenLoop => self.open_loop(inputs),
-            State::Idle | State::Fault(_) => self.generator.ramp_to_quiet(),
+            State::Idle | State::Fault(_) => self.drive.generator.ramp_to_quiet(),
         }
         let mut out = Outputs { dac: [[0; 2]; DAC_SAMPLES_PER_STEP], amp_enable: false };
         if !matches!(self.state(), State::Fault(_)) {
-            self.generator.reset_slew();
+            self.drive.generator.reset_slew();
         }
         if let State::Fault(_) = self.state() {
             // Safe within this very period: ramp every output to mid-range in these samples,
             // then the amplifier is disabled.
-            self.generator.quiet_within(DAC_SAMPLES_PER_STEP as u32);
-            self.generator.fill(&mut out.dac);
+            self.drive.generator.quiet_within(DAC_SAMPLES_PER_STEP as u32);
+            self.drive.generator.fill(&mut out.dac);
             out.amp_enable = false;
         } else {
-            self.generator.fill(&mut out.dac);
+            self.drive.generator.fill(&mut out.dac);
             out.amp_enable = true;
         }
         out

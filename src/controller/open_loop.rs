@@ -14,7 +14,7 @@ pub(super) struct OpenLoopRun {
 
 impl Controller {
     pub(super) fn open_loop(&mut self, inputs: &Inputs) {
-        let Activity::OpenLoop(mut run) = self.activity else { return };
+        let Activity::OpenLoop(mut run) = self.status.activity else { return };
         let here = self.position_nm();
         self.motion.profile_mut().reset(here);
         let blocked =
@@ -26,17 +26,17 @@ impl Controller {
             return self.end_open_loop_motion();
         }
         run.periods -= 1;
-        self.activity = Activity::OpenLoop(run);
-        self.generator.set_direction(run.direction);
-        self.generator.set_frequency_hz(run.frequency_hz);
-        self.generator.set_amplitude_v(run.volts);
-        self.drive_v = run.volts;
+        self.status.activity = Activity::OpenLoop(run);
+        self.drive.generator.set_direction(run.direction);
+        self.drive.generator.set_frequency_hz(run.frequency_hz);
+        self.drive.generator.set_amplitude_v(run.volts);
+        self.drive.commanded_v = run.volts;
     }
 
     /// End of referencing or open-loop stepping: hold here with the servo on, else go quiet.
     pub(super) fn end_open_loop_motion(&mut self) {
-        self.generator.set_amplitude_v(0.0);
-        self.drive_v = 0.0;
+        self.drive.generator.set_amplitude_v(0.0);
+        self.drive.commanded_v = 0.0;
         self.hold_here_or_quiet();
     }
 }

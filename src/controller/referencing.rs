@@ -21,7 +21,7 @@ impl ReferenceSearch {
 
 impl Controller {
     pub(super) fn reference(&mut self, inputs: &Inputs) {
-        let Activity::Referencing(mut search) = self.activity else { return };
+        let Activity::Referencing(mut search) = self.status.activity else { return };
         let here = self.position_nm();
         // No profile to follow while searching: keep the reference on the slider.
         self.motion.profile_mut().reset(here);
@@ -54,19 +54,19 @@ impl Controller {
             }
         }
         search.elapsed_s += self.dt_s;
-        self.activity = Activity::Referencing(search);
+        self.status.activity = Activity::Referencing(search);
         if search.elapsed_s > self.cfg.reference_timeout_s {
             return self.reference_failed();
         }
-        self.generator.set_direction(search.direction);
-        self.generator.set_frequency_hz(self.cfg.drive_freq_hz);
-        self.generator.set_amplitude_v(self.cfg.reference_drive_v);
-        self.drive_v = self.cfg.reference_drive_v;
+        self.drive.generator.set_direction(search.direction);
+        self.drive.generator.set_frequency_hz(self.cfg.drive_freq_hz);
+        self.drive.generator.set_amplitude_v(self.cfg.reference_drive_v);
+        self.drive.commanded_v = self.cfg.reference_drive_v;
     }
 
     pub(super) fn reference_failed(&mut self) {
         self.supervisor.note_reference_failure();
-        self.referenced = false;
+        self.status.referenced = false;
         self.end_open_loop_motion();
     }
 }

@@ -37,18 +37,18 @@ impl Controller {
             // Open-loop motion: no reference to follow, no stall judgement.
             return;
         }
-        let coarse = matches!(self.mode, Mode::Coarse);
-        let dir = f32::from(self.generator.direction());
+        let coarse = matches!(self.status.mode, Mode::Coarse);
+        let dir = f32::from(self.drive.generator.direction());
         let period = ClosedLoopPeriod {
             err_nm: (self.motion.profile().position_nm() - self.position_nm()) as f32,
             dir,
             speed_nm_s: self.feedback.speed_nm_s(),
-            drive_v: self.drive_v,
+            drive_v: self.drive.commanded_v,
             coarse,
             foot_speed_nm_s: self.cached_limits().map_or(0.0, |(_, v0)| v0 * 1e6),
             dt_s: self.dt_s,
             counted: self.feedback.encoder().is_some_and(|e| e.last_delta() != 0),
-            swing_v: self.fine.sine_swing_v(self.generator.amplitude_v()),
+            swing_v: self.fine.sine_swing_v(self.drive.generator.amplitude_v()),
             mass_kg: self.moving_mass_kg(),
         };
         let table = self.model.table.as_ref();
@@ -70,9 +70,9 @@ impl Controller {
 
     pub(super) fn trip(&mut self, code: FaultCode) {
         self.supervisor.note_fault();
-        self.activity = Activity::Fault(code);
-        self.servo = false;
-        self.mode = Mode::Coarse;
-        self.generator.ramp_to_quiet();
+        self.status.activity = Activity::Fault(code);
+        self.status.servo = false;
+        self.status.mode = Mode::Coarse;
+        self.drive.generator.ramp_to_quiet();
     }
 }
