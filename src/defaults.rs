@@ -4,10 +4,9 @@
 //! derives its [`Hardware`] from a parameter file and a test checks that, for the prototype
 //! file, it arrives at exactly these values.
 
-use crate::controller::{ControllerConfig, ReferenceSignal, DAC_SAMPLES_PER_STEP};
+use crate::controller::{ControllerConfig, DAC_SAMPLES_PER_STEP};
 use crate::generator::DacConfig;
 use crate::motor_table::PROTOTYPE_MOTOR;
-use crate::sensors::PreloadCalibration;
 
 /// DAC sample rate of the drive (samples/s per channel).
 pub const DAC_RATE_HZ: u32 = 200_000;
@@ -43,77 +42,15 @@ pub fn controller_config() -> ControllerConfig {
 /// Defaults for `hw`: every setting's default from its row of [`crate::settings::SETTINGS`] (a
 /// fixed value or one from the hardware).
 pub fn controller_config_for(hw: &Hardware) -> ControllerConfig {
-    with_defaults(hw, Unset::Zero)
+    with_defaults(hw, ControllerConfig::default())
 }
 
-/// What a setting holds before its default is applied (see [`with_defaults`]).
+/// The defaults for `hw`, over `start`: the DAC and the motor table are the hardware's, every
+/// other field takes its row's default. The result does not depend on `start` exactly when every
+/// setting has a row (`tests/storage.rs` starts from zeros and from odd values).
 #[doc(hidden)]
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Unset {
-    Zero,
-    /// NaN, all-ones integers, true, the second choice.
-    Odd,
-}
-
-/// The defaults for `hw`, starting from every setting at `unset`: the result does not depend
-/// on `unset` exactly when every setting gets its default from the table or the hardware
-/// (`tests/storage.rs` checks that).
-#[doc(hidden)]
-pub fn with_defaults(hw: &Hardware, unset: Unset) -> ControllerConfig {
-    let odd = unset == Unset::Odd;
-    let (f, w, n) = if odd { (f32::NAN, u16::MAX, -1i64) } else { (0.0, 0, 0) };
-    let reference_signal = if odd { ReferenceSignal::NegativeLimit } else { ReferenceSignal::Index };
-    // Rust needs every field for the struct; the settings' values come from their rows, the
-    // rest is the hardware's.
-    let mut cfg = ControllerConfig {
-        loop_hz: n as u32,
-        dac: hw.dac,
-        motor: hw.motor,
-        encoder_nm_per_count: n as u32,
-        preload: PreloadCalibration {
-            zero_word: w,
-            newton_per_word: f,
-            min_valid_word: w,
-            max_valid_word: w,
-            filter_alpha: f,
-        },
-        preload_min_n: f,
-        preload_max_n: f,
-        drive_freq_hz: f,
-        max_drive_v: f,
-        speed_fraction: f,
-        accel_fraction: f,
-        kp_per_s: f,
-        ki_n_per_nm_s: f,
-        feedforward: odd,
-        fb_kp_v_per_nm: f,
-        fb_ki_v_per_nm_s: f,
-        expected_load_n: f,
-        profile_wait_lag_nm: f,
-        approach_speed_nm_s: f,
-        fine_window_nm: f,
-        on_target_window_nm: n,
-        settle_time_s: f,
-        following_error_limit_nm: f,
-        stall_time_s: f,
-        encoder_jump_counts: n as i32,
-        travel_min_nm: n,
-        travel_max_nm: n,
-        velocity_max_nm_s: f,
-        accel_max_nm_s2: f,
-        decel_max_nm_s2: f,
-        reference_signal,
-        reference_position_nm: n,
-        reference_drive_v: f,
-        reference_timeout_s: f,
-        moving_mass_kg: f,
-        mu_dynamic: f,
-        tangential_scale: f,
-        normal_force_ratio: f,
-        rail_coulomb_n: f,
-        rail_viscous_n_s_per_m: f,
-        drive_freq_min_hz: f,
-    };
+pub fn with_defaults(hw: &Hardware, start: ControllerConfig) -> ControllerConfig {
+    let mut cfg = ControllerConfig { dac: hw.dac, motor: hw.motor, ..start };
     crate::settings::apply_defaults(hw, &mut cfg);
     cfg
 }

@@ -7,7 +7,7 @@ use crate::fastmath::{clamp_f32, clamp_i32};
 use crate::trig::sin_turn_q30;
 
 /// DAC and amplifier: volts at the amplifier output per DAC word, and the allowed output range.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct DacConfig {
     /// Amplifier output at DAC word 4095 (the DAC's full scale), volts.
     pub full_scale_v: f32,

@@ -13,7 +13,7 @@ use crate::Fx;
 pub const FREQ_POINTS: usize = 21;
 
 /// What the controller needs to know about the motor, per volt of drive.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct MotorConstants {
     /// Frequencies of the table, ascending (kHz).
     pub freq_khz: [Fx; FREQ_POINTS],

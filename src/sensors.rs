@@ -54,7 +54,7 @@ impl Encoder {
 }
 
 /// Calibration of the preload force cell: `force = (word − zero_word) · newton_per_word`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct PreloadCalibration {
     pub zero_word: u16,
     pub newton_per_word: f32,

@@ -454,15 +454,69 @@ fn version_1_record_still_loads() {
 
 #[test]
 fn every_setting_is_stored_unless_read_only_and_every_default_comes_from_somewhere() {
-    use piezo_drive::defaults::{with_defaults, Unset, REFERENCE_BOARD};
+    use piezo_drive::controller::{ControllerConfig, ReferenceSignal};
+    use piezo_drive::defaults::{with_defaults, REFERENCE_BOARD};
+    use piezo_drive::sensors::PreloadCalibration;
     use piezo_drive::settings::SETTINGS;
     for s in SETTINGS {
         assert_eq!(s.stored, !s.read_only, "{}", s.name);
         assert_eq!(storage::offset_of(s.id).is_some(), s.stored, "{}", s.name);
     }
-    // Every field of the defaults is set by the table or the hardware, whatever it held before.
-    let a = with_defaults(&REFERENCE_BOARD, Unset::Zero);
-    let b = with_defaults(&REFERENCE_BOARD, Unset::Odd);
+    // Every field of the defaults is set by the table or the hardware, whatever it held before:
+    // from zeros, and from NaN, all-ones integers, true and the second choice. Written out field
+    // by field, so that a new field without a row fails to compile here first.
+    let (f, w, n) = (f32::NAN, u16::MAX, -1i64);
+    let odd = ControllerConfig {
+        loop_hz: n as u32,
+        dac: REFERENCE_BOARD.dac,
+        motor: REFERENCE_BOARD.motor,
+        encoder_nm_per_count: n as u32,
+        preload: PreloadCalibration {
+            zero_word: w,
+            newton_per_word: f,
+            min_valid_word: w,
+            max_valid_word: w,
+            filter_alpha: f,
+        },
+        preload_min_n: f,
+        preload_max_n: f,
+        drive_freq_hz: f,
+        max_drive_v: f,
+        speed_fraction: f,
+        accel_fraction: f,
+        kp_per_s: f,
+        ki_n_per_nm_s: f,
+        feedforward: true,
+        fb_kp_v_per_nm: f,
+        fb_ki_v_per_nm_s: f,
+        expected_load_n: f,
+        profile_wait_lag_nm: f,
+        approach_speed_nm_s: f,
+        fine_window_nm: f,
+        on_target_window_nm: n,
+        settle_time_s: f,
+        following_error_limit_nm: f,
+        stall_time_s: f,
+        encoder_jump_counts: n as i32,
+        travel_min_nm: n,
+        travel_max_nm: n,
+        velocity_max_nm_s: f,
+        accel_max_nm_s2: f,
+        decel_max_nm_s2: f,
+        reference_signal: ReferenceSignal::NegativeLimit,
+        reference_position_nm: n,
+        reference_drive_v: f,
+        reference_timeout_s: f,
+        moving_mass_kg: f,
+        mu_dynamic: f,
+        tangential_scale: f,
+        normal_force_ratio: f,
+        rail_coulomb_n: f,
+        rail_viscous_n_s_per_m: f,
+        drive_freq_min_hz: f,
+    };
+    let a = with_defaults(&REFERENCE_BOARD, ControllerConfig::default());
+    let b = with_defaults(&REFERENCE_BOARD, odd);
     assert_eq!(a, b);
     assert_eq!(a, controller_config());
     assert!(piezo_drive::controller::Controller::new(a).is_ok());

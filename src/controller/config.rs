@@ -12,7 +12,7 @@ use crate::model::{MotorConstants, PerVolt};
 use crate::sensors::PreloadCalibration;
 use crate::Fx;
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct ControllerConfig {
     pub loop_hz: u32,
     pub dac: DacConfig,

@@ -145,12 +145,13 @@ impl State {
 }
 
 /// What referencing looks for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum ReferenceSignal {
     /// The encoder index if the scale has one: searched toward −x first; at the negative limit
     /// switch the search turns round; reaching the positive one means there is no index, and
     /// the search goes back to reference on the negative limit switch.
+    #[default]
     Index,
     /// The negative limit switch (stages without an index).
     NegativeLimit,
