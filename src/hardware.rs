@@ -1,7 +1,7 @@
 //! The hardware a firmware build is for, as the settings table reads it (a leaf: the settings'
 //! rows take their hardware defaults from it, and [`crate::defaults`] builds on both).
 
-use crate::controller::ControllerConfig;
+use crate::config::ControllerConfig;
 use crate::generator::DacConfig;
 use crate::model::MotorConstants;
 use crate::Fx;
@@ -17,12 +17,16 @@ pub fn full_contact_preload_n(cfg: &ControllerConfig) -> f32 {
         .to_num()
 }
 
+/// Points per data-recorder table the firmware's RAM holds (PI's controllers record at least
+/// 1 024; the settings table reports it as `DATA_REC_SET_POINTS`, the recorder sizes by it).
+pub const RECORDER_DEPTH: usize = 1024;
+
 /// What the defaults depend on besides the settings table: the hardware the firmware is built
 /// for (host-sim derives one from a parameter file). The rows that take their default from it
 /// say how (`hardware(..)` in [`crate::settings::SETTINGS`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Hardware {
-    /// Control loop rate: one controller step per [`crate::controller::DAC_SAMPLES_PER_STEP`] DAC samples.
+    /// Control loop rate: one controller step per `DAC_SAMPLES_PER_STEP` (the controller's) DAC samples.
     pub loop_hz: u32,
     /// DAC and amplifier: output range, sample rate, drive band, slew limit.
     pub dac: DacConfig,

@@ -16,6 +16,7 @@
 #![no_std]
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 
+pub mod config;
 pub mod controller;
 pub mod defaults;
 pub mod fastmath;

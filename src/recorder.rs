@@ -1,13 +1,13 @@
 //! The data recorder behind GCS `DRC`/`DRT`/`RTR`/`DRR?` (and `DRC?`, `DRT?`, `RTR?`, `DRL?`,
 //! `TNR?`, `HDR?`): [`TABLES`] record tables of [`DEPTH`] points each in one fixed buffer,
 //! filled once per control tick from the controller's public state after `step`
-//! ([`Recorder::sample`]), read back by the protocol ([`crate::gcs`]).
+//! ([`Recorder::sample`]), read back by the protocol (`gcs::datarec`).
 //!
 //! Memory: `TABLES × DEPTH` i32 points, 8 × 1 024 × 4 = 32 768 bytes, plus a few words per table
 //! (PI's controllers record at least 1 024 points per table; PIPython's datarectools reads the depth
 //! from parameter 0x16000201).
 //! A point is an integer in the option's own unit (nm, mV, mHz, mN, a state code): the tick only
-//! stores, the protocol formats ([`Recorder::write_point`]).
+//! stores, the protocol formats (`gcs::datarec`).
 //!
 //! Sharing: every field is an atomic, so the recorder is used through `&Recorder` from the tick
 //! and from the protocol at once without a lock (on the board it is a `static`, zero-initialised:
@@ -30,8 +30,8 @@ use core::sync::atomic::{AtomicI32, AtomicU32, Ordering};
 
 /// Record tables (`TNR?`).
 pub const TABLES: usize = 8;
-/// Points per table.
-pub const DEPTH: usize = 1024;
+/// Points per table: what the build gives it ([`crate::hardware::RECORDER_DEPTH`]).
+pub const DEPTH: usize = crate::hardware::RECORDER_DEPTH;
 /// Bytes of recorded points.
 pub const BUFFER_BYTES: usize = TABLES * DEPTH * core::mem::size_of::<i32>();
 /// Largest record rate (`RTR`): one point per 65 535 ticks (6.5 s at 10 kHz).
@@ -428,12 +428,4 @@ impl Recorder {
             }
         }
     }
-}
-
-/// Writes point `v` of option `opt` in the protocol's unit (`1.000050`, `98.250`, `nan`, `2`).
-pub fn write_point(out: &mut dyn crate::gcs::num::Sink, opt: u32, v: i32) -> bool {
-    if v == NO_VALUE {
-        return out.put(b"nan");
-    }
-    crate::gcs::num::write_scaled(out, i64::from(v), decimals(opt))
 }

@@ -5,7 +5,7 @@
 //!
 //! - `SPA`/`SPA?`/`HPA?` ([`crate::gcs`], through [`crate::gcs::params`]): the rows in table
 //!   order, `HPA?` text `description (unit)`;
-//! - the range check ([`crate::controller::validate_settings`]: each row's [`Range`], plus the
+//! - the range check (`validate_settings` (the controller's): each row's [`Range`], plus the
 //!   few rules that tie two settings together);
 //! - the flash record ([`crate::storage`]): the stored rows in table order, each in its type's
 //!   width;
@@ -22,7 +22,7 @@
 //! read without it). Removing or reordering a stored row, or changing its type, needs a decoder
 //! for the previous layout (see `storage`).
 
-use crate::controller::{ControllerConfig, ReferenceSignal, MAX_TRAVEL_NM};
+use crate::config::{ControllerConfig, ReferenceSignal, MAX_TRAVEL_NM};
 use crate::hardware::Hardware;
 
 /// The first record format from the settings table (version 1 was written before it): a stored
@@ -202,7 +202,7 @@ pub struct Setting {
     /// The field's value.
     pub get: fn(&ControllerConfig) -> Value,
     /// Sets the field; false (nothing changed) when the value does not fit its type (range
-    /// checks are [`crate::controller::validate_settings`]'s).
+    /// checks are `validate_settings` (the controller's)'s).
     pub set: fn(&mut ControllerConfig, Value) -> bool,
 }
 
@@ -399,7 +399,7 @@ macro_rules! settings {
         pub static $name: &[Setting] = &[$(setting!($($row)*)),*];
 
         /// Whether every setting of `c` is within its own range (the rules between settings
-        /// are [`crate::controller::validate_settings`]'s).
+        /// are `validate_settings` (the controller's)'s).
         pub fn each_in_range(c: &ControllerConfig) -> bool {
             true $(&& setting!(@check c; $($row)*))*
         }
@@ -537,13 +537,20 @@ settings! {
     (0x1022, "Drive", drive_freq_min_hz: f32 = hardware(|hw, _| hw.motor.lowest_model_freq_hz,
         "the motor table's lowest frequency where eq. 7 holds");
         "Hz", 1.0, POSITIVE, Stored since 5, "Lowest drive frequency the controller chooses"),
+    // The coarse mode's encoder-loss watch (`controller/supervisor.rs`): 40 counts (2 µm at
+    // 50 nm) is a tenth of the fine window's reach and 0.7 ms of the 1 kg carriage's cruise; a
+    // slider the model misjudges by 2× still shows 20 counts. A stage whose model is further off
+    // (or with a finer encoder) sets more; 0 leaves only the stall check.
+    (0x1023, "Supervision", encoder_loss_counts: i32 = 40;
+        "counts", 1.0, Range::Int { lo: 0, hi: i16::MAX as i64 }, Stored since 6,
+        "Encoder loss limit under the coarse drive (0: off)"),
     // PI's SERVO_UPDATE_TIME: PIPython's data recorder tools read it (`RTR` counts these).
     (0x0E000200, "Hardware",
         servo_update_time_s: f32 = derived(|c| 1.0 / c.loop_hz.max(1) as f32, "one period of the control loop");
         "s", 1.0, POSITIVE, ReadOnly, "Servo update time"),
     // PI's DATA_REC_SET_POINTS: PIPython's data recorder tools ask for it before `HDR?`.
     (0x16000201, "Recorder",
-        recorder_points: u32 = derived(|_| crate::recorder::DEPTH as u32, "the recorder's table depth");
+        recorder_points: u32 = derived(|_| crate::hardware::RECORDER_DEPTH as u32, "the recorder's table depth");
         "", 1.0, Range::Int { lo: 1, hi: u32::MAX as i64 }, ReadOnly, "Data recorder points per table"),
 }
 

@@ -5,9 +5,8 @@
 
 use piezo_drive::controller::{Controller, Inputs};
 use piezo_drive::defaults;
-use piezo_drive::recorder::{
-    option, trigger, write_point, Recorder, RecorderError, DEPTH, MAX_RATE, NO_VALUE, TABLES,
-};
+use piezo_drive::gcs::datarec::write_point;
+use piezo_drive::recorder::{option, trigger, Recorder, RecorderError, DEPTH, MAX_RATE, NO_VALUE, TABLES};
 use proptest::prelude::*;
 
 /// 16 N on the default force cell (1310 · 50 / 4095 = 15.995 N).

@@ -203,6 +203,7 @@ fn changed() -> piezo_drive::controller::ControllerConfig {
     c.rail_coulomb_n = 0.4;
     c.rail_viscous_n_s_per_m = 2.5;
     c.drive_freq_min_hz = 900.0;
+    c.encoder_loss_counts = 120;
     c
 }
 
@@ -356,17 +357,24 @@ fn version_5_record_byte_for_byte_and_versions_4_3_and_2_still_load() {
     ]);
     let mut v5_fields = v4_fields.clone();
     v5_fields.push(F(900.0)); // 0x1022 lowest drive frequency (Hz)
-    let expected = record(5, &v5_fields);
-    assert_eq!(VERSION, 5);
-    assert_eq!(PAYLOAD_LEN, 168);
-    assert_eq!(RECORD_LEN, 180);
+    let mut v6_fields = v5_fields.clone();
+    v6_fields.push(I32(120)); // 0x1023 encoder loss limit (counts)
+    let expected = record(6, &v6_fields);
+    assert_eq!(VERSION, 6);
+    assert_eq!(PAYLOAD_LEN, 172);
+    assert_eq!(RECORD_LEN, 184);
     assert_eq!(storage::encode(&changed()).to_vec(), expected);
     assert_eq!(storage::decode(&expected, &controller_config()), Ok(changed()));
-    // Version 4: everything but the lowest drive frequency, which comes from the defaults.
+    // Version 5: everything but the encoder loss limit, which comes from the defaults.
     let d = controller_config();
+    let v5 = record(5, &v5_fields);
+    assert_eq!(v5.len(), 8 + 168 + 4);
+    let mut want = changed();
+    want.encoder_loss_counts = d.encoder_loss_counts;
+    assert_eq!(storage::decode(&v5, &d), Ok(want));
+    // Version 4: also the lowest drive frequency from the defaults.
     let v4 = record(4, &v4_fields);
     assert_eq!(v4.len(), 8 + 164 + 4);
-    let mut want = changed();
     want.drive_freq_min_hz = d.drive_freq_min_hz;
     assert_eq!(storage::decode(&v4, &d), Ok(want));
     // Version 3: also the calibrated motor from the defaults.
@@ -439,6 +447,7 @@ fn version_1_record_still_loads() {
         (d.mu_dynamic, d.tangential_scale, d.normal_force_ratio);
     (expected.rail_coulomb_n, expected.rail_viscous_n_s_per_m) = (d.rail_coulomb_n, d.rail_viscous_n_s_per_m);
     expected.drive_freq_min_hz = d.drive_freq_min_hz;
+    expected.encoder_loss_counts = d.encoder_loss_counts;
     assert_eq!(storage::decode(&v1, &d), Ok(expected));
     // As read from a flash page (erased bytes after it).
     let mut page = vec![0xFFu8; 2048];
@@ -498,6 +507,7 @@ fn every_setting_is_stored_unless_read_only_and_every_default_comes_from_somewhe
         following_error_limit_nm: f,
         stall_time_s: f,
         encoder_jump_counts: n as i32,
+        encoder_loss_counts: n as i32,
         travel_min_nm: n,
         travel_max_nm: n,
         velocity_max_nm_s: f,

@@ -832,3 +832,27 @@ fn a_lost_encoder_under_the_coarse_drive_trips_within_milliseconds() {
     }
     assert!(holds >= 2, "only {holds} moves ended in a coarse hold");
 }
+
+/// The watch's limit is a setting (`0x1023`): ten times the default trips later and after a
+/// longer run unseen, and 0 leaves the stall check (50 ms) to catch the lost encoder.
+#[test]
+fn the_encoder_loss_limit_setting_moves_the_trip_and_zero_turns_the_watch_off() {
+    let p = Params::prototype();
+    let lose = |loss_counts: i32| {
+        let mut cfg = controller_config(&p);
+        cfg.encoder_loss_counts = loss_counts;
+        let mut sil = ready_board(&p, cfg, 16.0).unwrap();
+        sil.controller.move_to(1_000_000).unwrap();
+        let lost = lose_encoder_when(&mut sil, |s| s.plant.slider_position_m() > 0.5e-3);
+        lost.flatten().unwrap_or_else(|| panic!("limit {loss_counts}: no fault"))
+    };
+    let (code_40, after_40_s, ran_40_nm) = lose(40);
+    let (code_400, after_400_s, ran_400_nm) = lose(400);
+    let (code_off, after_off_s, _) = lose(0);
+    assert_eq!(
+        (code_40, code_400, code_off),
+        (FaultCode::EncoderLoss, FaultCode::EncoderLoss, FaultCode::Stall)
+    );
+    assert!(after_400_s > after_40_s && ran_400_nm > 5.0 * ran_40_nm, "{ran_40_nm} nm, {ran_400_nm} nm");
+    assert!(after_off_s > 0.02, "{after_off_s} s");
+}

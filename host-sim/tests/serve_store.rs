@@ -61,6 +61,7 @@ const SET: &[(&str, &str, &str)] = &[
     ("0x101E", "0.4", "0.4"),
     ("0x101F", "2.5", "2.5"),
     ("0x1022", "900", "900"),
+    ("0x1023", "120", "120"),
 ];
 
 /// The read-only parameters (hardware facts, not stored) at the simulated board's values:
@@ -129,6 +130,7 @@ fn wpa_then_restart_brings_back_every_stored_parameter_and_nothing_else() {
     (c.mu_dynamic, c.tangential_scale, c.normal_force_ratio) = (0.28, 0.19, 0.6);
     (c.rail_coulomb_n, c.rail_viscous_n_s_per_m) = (0.4, 2.5);
     c.drive_freq_min_hz = 900.0;
+    c.encoder_loss_counts = 120;
     let record = std::fs::read(&store).expect("WPA wrote the store");
     assert_eq!(record, piezo_drive::storage::encode(&expected).to_vec());
 

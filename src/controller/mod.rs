@@ -35,8 +35,9 @@ mod referencing;
 mod supervision;
 mod supervisor;
 pub mod table_build;
+pub use crate::config::{ControllerConfig, ReferenceSignal, MAX_TRAVEL_NM};
 pub use commands::ConfigChange;
-pub use config::{validate_change, validate_settings, ControllerConfig, MAX_TRAVEL_NM};
+pub use config::{validate_change, validate_settings};
 use feedback::Feedback;
 use fine::{FineMode, FineStep};
 use frequency_policy::FrequencyPolicy;
@@ -142,19 +143,6 @@ impl State {
             State::Fault(code) => Err(code),
         }
     }
-}
-
-/// What referencing looks for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub enum ReferenceSignal {
-    /// The encoder index if the scale has one: searched toward −x first; at the negative limit
-    /// switch the search turns round; reaching the positive one means there is no index, and
-    /// the search goes back to reference on the negative limit switch.
-    #[default]
-    Index,
-    /// The negative limit switch (stages without an index).
-    NegativeLimit,
 }
 
 /// What the board gives each period.

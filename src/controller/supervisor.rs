@@ -4,12 +4,7 @@
 
 use super::FaultCode;
 
-/// Encoder-loss watch in the coarse mode: the model's own carriage, pushed from rest by the drive
-/// since the encoder last counted, may run this many counts before silence counts as a loss.
-/// 40 counts (2 µm at 50 nm) is a tenth of the fine window's reach and 0.7 ms of the 1 kg
-/// carriage's cruise; a slider the model misjudges by 2× still shows 20 counts.
-const LOSS_COUNTS: f32 = 40.0;
-/// ... and only while the drive is at least this share of the largest: near the foot's slip
+/// The coarse mode's encoder-loss watch ([`LossWatch`]) counts only while the drive is at least this share of the largest: near the foot's slip
 /// threshold the model's crawl is least certain (a 0.3 kg carriage at 5 N stood 550 nm short of
 /// a target at 13 V, where the model has it moving at 0.2 mm/s, until the approach push moved
 /// it; `coarse.rs`).
@@ -25,6 +20,8 @@ pub(super) struct SupervisorConfig {
     pub(super) max_drive_v: f32,
     /// The encoder's resolution (nm per count).
     pub(super) nm_per_count: f32,
+    /// How far the watch's model carriage may run unseen (counts; 0: not watched).
+    pub(super) loss_counts: f32,
 }
 
 /// One closed-loop period as the supervisor sees it.
@@ -168,7 +165,8 @@ impl Supervisor {
         let driving = p.coarse && p.drive_v > 0.9 * max_v;
         let not_following = driving && p.dir * p.speed_nm_s < 0.1 * p.foot_speed_nm_s;
         let watched = p.drive_v >= LOSS_MIN_DRIVE_SHARE * max_v;
-        if self.loss_watch.update(p, watched, LOSS_COUNTS * self.cfg.nm_per_count, thrust_at) {
+        let limit_nm = self.cfg.loss_counts * self.cfg.nm_per_count;
+        if limit_nm > 0.0 && self.loss_watch.update(p, watched, limit_nm, thrust_at) {
             return Some(FaultCode::EncoderLoss);
         }
         let err = p.err_nm;
@@ -258,6 +256,7 @@ mod tests {
             encoder_jump_counts: 100,
             max_drive_v: 100.0,
             nm_per_count: 50.0,
+            loss_counts: 40.0,
         })
     }
 

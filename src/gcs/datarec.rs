@@ -363,7 +363,7 @@ pub(super) fn write_rows(cursor: &mut DrrCursor, rec: &Recorder, out: &mut Out, 
                 out.s(" ");
             }
             let v = rec.point(*id, cursor.next).unwrap_or(0);
-            recorder::write_point(out, *opt, v);
+            write_point(out, *opt, v);
         }
         cursor.next += 1;
     }
@@ -401,4 +401,12 @@ impl Gcs {
             out.finish();
         }
     }
+}
+
+/// Writes point `v` of option `opt` in the protocol's unit (`1.000050`, `98.250`, `nan`, `2`).
+pub fn write_point(out: &mut dyn crate::gcs::num::Sink, opt: u32, v: i32) -> bool {
+    if v == recorder::NO_VALUE {
+        return out.put(b"nan");
+    }
+    write_scaled(out, i64::from(v), recorder::decimals(opt))
 }
