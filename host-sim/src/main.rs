@@ -164,9 +164,12 @@ fn cmd_model_grid(params: &Params, json: bool) -> Result<()> {
         println!("{}", serde_json::to_string_pretty(&grid)?);
     } else {
         println!("worst error in % of the plant's no-load speed, per carriage:");
-        println!("{:>9} {:>15} {:>15} {:>15}", "carriage", "constant-speed", "inertia", "contact");
-        for (m, c, i, k) in host_sim::model_grid::worst_per_mass(&grid) {
-            println!("{:>6} kg {c:>14.1}% {i:>14.1}% {k:>14.1}%", m);
+        println!(
+            "{:>9} {:>15} {:>15} {:>15} {:>15}",
+            "carriage", "constant-speed", "inertia", "contact", "firmware"
+        );
+        for (m, c, i, k, fw) in host_sim::model_grid::worst_per_mass(&grid) {
+            println!("{:>6} kg {c:>14.1}% {i:>14.1}% {k:>14.1}% {fw:>14.1}%", m);
         }
     }
     Ok(())

@@ -1,13 +1,19 @@
 //! The steady-state models against the time-domain plant over issue 28's grid: carriages ×
 //! preloads × drive frequencies × loads, each model's speed against the plant's, in % of the
-//! plant's no-load speed at that point. `host-sim model-grid` prints it; the docs' table and
+//! plant's no-load speed at that point. Beside the f64 models, the firmware's: the full-drive
+//! speed table the control core builds (fixed point and f32) for a controller told the carriage's
+//! mass, pinned to the point's frequency, at the preload its force cell reads. `host-sim model-grid` prints it; the docs' table and
 //! figure (`readme-figures`) and the tests hold it.
 
+use crate::harness::sil::hardware;
 use crate::motor::params::Params;
 use crate::motor::plant::steady_speed_m_s;
 use crate::motor::steady::{OperatingPoint, ThrustModel};
 use crate::motor::steady_contact::ContactModel;
 use crate::motor::steady_inertia::InertialModel;
+use piezo_drive::controller::model_cache::ModelTable;
+use piezo_drive::controller::{Controller, Inputs};
+use piezo_drive::defaults::controller_config_for;
 use rayon::prelude::*;
 use serde::Serialize;
 
@@ -29,6 +35,8 @@ pub struct GridPoint {
     pub constant_speed_mm_s: f64,
     pub inertia_mm_s: f64,
     pub contact_mm_s: f64,
+    /// The firmware's model table (what its feedforward uses), NaN without one.
+    pub firmware_mm_s: f64,
 }
 
 impl GridPoint {
@@ -58,6 +66,7 @@ pub fn compute(p: &Params) -> Vec<GridPoint> {
             let inertial = InertialModel::new(&q, op);
             let constant = ThrustModel::new(&q, op);
             let stall = contact.stall_force_n();
+            let firmware = firmware_table(&q, preload_n, frequency_hz);
             let plant = |load: f64| steady_speed_m_s(&q, preload_n, 100.0, frequency_hz, 1, load) * 1e3;
             let no_load = plant(0.0);
             LOAD_SHARES
@@ -75,6 +84,9 @@ pub fn compute(p: &Params) -> Vec<GridPoint> {
                         constant_speed_mm_s: mm_s(constant.speed_at_load_m_s(load_n)),
                         inertia_mm_s: mm_s(inertial.speed_at_load_m_s(load_n)),
                         contact_mm_s: mm_s(contact.speed_at_load_m_s(load_n)),
+                        firmware_mm_s: firmware
+                            .as_ref()
+                            .map_or(f64::NAN, |t| f64::from(t.speed_at_load_mm_s(load_n as f32))),
                     }
                 })
                 .collect::<Vec<_>>()
@@ -82,10 +94,25 @@ pub fn compute(p: &Params) -> Vec<GridPoint> {
         .collect()
 }
 
+/// The model table the firmware's control core builds for the file `p` (its carriage told as the
+/// moving mass, the drive frequency pinned at `frequency_hz`) once its force cell reads
+/// `preload_n`; None when the controller asks for none.
+fn firmware_table(p: &Params, preload_n: f64, frequency_hz: f64) -> Option<ModelTable> {
+    let hw = hardware(p);
+    let mut cfg = controller_config_for(&hw);
+    cfg.moving_mass_kg = p.slider.mass_kg as f32;
+    (cfg.drive_freq_hz, cfg.drive_freq_min_hz) = (frequency_hz as f32, frequency_hz as f32);
+    let mut ctl = Controller::new(cfg).ok()?;
+    let word =
+        (preload_n / f64::from(cfg.preload.newton_per_word)).round() + f64::from(cfg.preload.zero_word);
+    ctl.step(&Inputs { preload_word: word as u16, ..Default::default() });
+    Some(ModelTable::build(&ctl.model_request()?))
+}
+
 /// Worst absolute error (% of the plant's no-load speed) of each model per carriage:
-/// `(mass, constant-speed, inertial, contact)`; a model with no periodic motion where the plant
+/// `(mass, constant-speed, inertial, contact, firmware)`; a model with no periodic motion where the plant
 /// has one counts as 100 %.
-pub fn worst_per_mass(grid: &[GridPoint]) -> Vec<(f64, f64, f64, f64)> {
+pub fn worst_per_mass(grid: &[GridPoint]) -> Vec<(f64, f64, f64, f64, f64)> {
     MASSES_KG
         .iter()
         .map(|&m| {
@@ -102,7 +129,13 @@ pub fn worst_per_mass(grid: &[GridPoint]) -> Vec<(f64, f64, f64, f64)> {
                     })
                     .fold(0.0, f64::max)
             };
-            (m, worst(|g| g.constant_speed_mm_s), worst(|g| g.inertia_mm_s), worst(|g| g.contact_mm_s))
+            (
+                m,
+                worst(|g| g.constant_speed_mm_s),
+                worst(|g| g.inertia_mm_s),
+                worst(|g| g.contact_mm_s),
+                worst(|g| g.firmware_mm_s),
+            )
         })
         .collect()
 }

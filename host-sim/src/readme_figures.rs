@@ -144,10 +144,11 @@ fn slider_mass_table(p: &Params) -> String {
 /// Worst error of each steady-state model per carriage over issue 28's grid.
 fn model_grid_table(grid: &[model_grid::GridPoint]) -> String {
     let mut t = String::from(
-        "| carriage | constant speed (eqs. 19–22) | with the carriage's inertia | with the contact's timing |\n|---|---|---|---|\n",
+        "| carriage | constant speed (eqs. 19–22) | with the carriage's inertia | with the contact's timing | the firmware's table |\n|---|---|---|---|---|\n",
     );
-    for (m, constant, inertia, contact) in model_grid::worst_per_mass(grid) {
-        let _ = writeln!(t, "| {m} kg | {constant:.1} % | {inertia:.1} % | {contact:.1} % |");
+    for (m, constant, inertia, contact, firmware) in model_grid::worst_per_mass(grid) {
+        let _ =
+            writeln!(t, "| {m} kg | {constant:.1} % | {inertia:.1} % | {contact:.1} % | {firmware:.1} % |");
     }
     t
 }
