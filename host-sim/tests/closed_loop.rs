@@ -772,27 +772,17 @@ fn open_loop_stepping_ends_at_a_limit_switch_and_runs_away_from_it() {
     assert_eq!(sil.controller.limit_stop_count(), 1);
 }
 
-/// The encoder stops counting once `now` holds (None: it never did within 3 s); then the fault,
-/// how long until it and how far the slider ran in that time (s, nm), None when nothing tripped
-/// within 0.2 s.
-#[allow(clippy::type_complexity)]
-fn lose_encoder_when(sil: &mut Sil, now: impl FnMut(&Sil) -> bool) -> Option<Option<(FaultCode, f64, f64)>> {
+/// The encoder stops counting once `now` holds (None: it never did within 3 s); then the fault
+/// (within 0.2 s, [`until_fault`]), how long until it and how far the slider ran in that time (s,
+/// nm).
+fn lose_encoder_when(sil: &mut Sil, now: impl FnMut(&Sil) -> bool) -> Option<(FaultCode, f64, f64)> {
     if !sil.run_until(3.0, now) {
         return None;
     }
-    Some(trip_after_losing_the_encoder(sil))
-}
-
-fn trip_after_losing_the_encoder(sil: &mut Sil) -> Option<(FaultCode, f64, f64)> {
     sil.frozen_encoder_counts = Some(sil.plant.encoder_counts());
     let (t0, x0) = (sil.time_s(), sil.plant.slider_position_m());
-    while sil.time_s() < t0 + 0.2 {
-        sil.period();
-        if let State::Fault(code) = sil.controller.state() {
-            return Some((code, sil.time_s() - t0, (sil.plant.slider_position_m() - x0).abs() * 1e9));
-        }
-    }
-    None
+    let (code, _) = until_fault(sil, 0.2);
+    Some((code, sil.time_s() - t0, (sil.plant.slider_position_m() - x0).abs() * 1e9))
 }
 
 /// Issue 30 item 6: an encoder that stops counting (cable off, dirty scale) under the coarse
@@ -813,18 +803,15 @@ fn a_lost_encoder_under_the_coarse_drive_trips_within_milliseconds() {
             let mut sil = ready_board(&p, controller_config(&p), preload_n).unwrap();
             sil.controller.move_to(1_000_000).unwrap();
             let lost = lose_encoder_when(&mut sil, |s| s.plant.slider_position_m() > 0.5e-3);
-            let (code, after_s, ran_nm) =
-                lost.flatten().unwrap_or_else(|| panic!("{case}: never half way, or no fault while moving"));
+            let (code, after_s, ran_nm) = lost.unwrap_or_else(|| panic!("{case}: never half way"));
             assert_eq!(code, FaultCode::EncoderLoss, "{case} moving");
             assert!(after_s <= 0.005 && ran_nm <= 5_000.0, "{case} moving: {after_s} s, {ran_nm} nm");
             // The final approach of a hold in the coarse mode, where a move ends in one.
             let mut sil = ready_board(&p, controller_config(&p), preload_n).unwrap();
             sil.controller.move_to(1_000_000).unwrap();
             let hold_coarse = |s: &Sil| s.controller.state() == State::Holding && !s.controller.fine_mode();
-            if let Some(lost) = lose_encoder_when(&mut sil, hold_coarse) {
+            if let Some((code, after_s, ran_nm)) = lose_encoder_when(&mut sil, hold_coarse) {
                 holds += 1;
-                let (code, after_s, ran_nm) =
-                    lost.unwrap_or_else(|| panic!("{case}: no fault while holding"));
                 assert_eq!(code, FaultCode::EncoderLoss, "{case} holding");
                 assert!(after_s <= 0.02 && ran_nm <= 5_000.0, "{case} holding: {after_s} s, {ran_nm} nm");
             }
@@ -844,7 +831,7 @@ fn the_encoder_loss_limit_setting_moves_the_trip_and_zero_turns_the_watch_off() 
         let mut sil = ready_board(&p, cfg, 16.0).unwrap();
         sil.controller.move_to(1_000_000).unwrap();
         let lost = lose_encoder_when(&mut sil, |s| s.plant.slider_position_m() > 0.5e-3);
-        lost.flatten().unwrap_or_else(|| panic!("limit {loss_counts}: no fault"))
+        lost.unwrap_or_else(|| panic!("limit {loss_counts}: never half way"))
     };
     let (code_40, after_40_s, ran_40_nm) = lose(40);
     let (code_400, after_400_s, ran_400_nm) = lose(400);

@@ -97,10 +97,7 @@ impl LossWatch {
             self.speed_nm_s = 0.0;
             return false;
         }
-        let balance = match self.balance_n {
-            Some(b) => Some(b),
-            None => thrust_at(self.counted_at.0, self.counted_at.1),
-        };
+        let balance = self.balance_n.or_else(|| thrust_at(self.counted_at.0, self.counted_at.1));
         let (Some(balance), Some(thrust)) = (balance, thrust_at(p.swing_v, self.speed_nm_s)) else {
             return false;
         };
