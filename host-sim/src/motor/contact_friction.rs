@@ -48,6 +48,7 @@ pub struct Layer {
 impl Layer {
     /// One step: the friction force on the slider over the step (N). The slider's new speed is
     /// then `v + dt·(external + friction)/m` (the law is implicit in it).
+    #[inline]
     pub fn step(&mut self, law: &FrictionLaw, i: &StepInput) -> f64 {
         if law.kt_n_per_m <= 0.0 {
             return rigid(law, i);
@@ -66,6 +67,7 @@ impl Layer {
     /// `vf − ṡ − v` crosses zero, so the force is continuous. Without contact the layer relaxes
     /// toward zero the same way. Implicit in the slider speed and the shear, so a stiff layer on
     /// a light slider stays stable.
+    #[inline]
     fn kelvin_voigt(&mut self, law: &FrictionLaw, i: &StepInput) -> f64 {
         let (dt, mass, kt, ct) = (i.dt_s, i.mass_kg, law.kt_n_per_m, law.ct_n_s_per_m);
         // Stick trial by the trapezoidal rule (energy-conserving for the undamped spring, so the
@@ -137,6 +139,7 @@ fn rigid(law: &FrictionLaw, i: &StepInput) -> f64 {
 }
 
 /// εc's viscous part `εc·(ẋ − v_new)`, implicit: `v_new` from this same update with `coulomb`.
+#[inline]
 fn viscous(law: &FrictionLaw, i: &StepInput, coulomb: f64) -> f64 {
     let k = law.viscous_n_s_per_m * i.dt_s / i.mass_kg;
     let v_new = (i.slider_m_s + i.dt_s * (i.external_n + coulomb) / i.mass_kg + k * i.foot_m_s) / (1.0 + k);

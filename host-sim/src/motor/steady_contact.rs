@@ -54,7 +54,7 @@ use crate::motor::steady::{amplitudes, OperatingPoint};
 use nalgebra::SMatrix;
 use std::collections::VecDeque;
 use std::f64::consts::{PI, TAU};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// The periodic orbit's start speed is found to this share of the foot's peak speed: the mean
 /// speed then to about the same share, 1e-4 of the 1 % a speed is measured to.
@@ -244,6 +244,13 @@ fn advance(
     advance(x, lvl + 1, t, force, pressing, h) + advance(x, lvl + 1, t, force, pressing, h)
 }
 
+/// cos φ at the ends of a period's steps (φ from −π), computed once: a model is built for every
+/// row the gap workflow evaluates, and 1024 cosines were a fifth of an orbit's time.
+fn cos_ends() -> &'static [f64] {
+    static TABLE: OnceLock<Vec<f64>> = OnceLock::new();
+    TABLE.get_or_init(|| (1..=STEPS).map(|i| (-PI + TAU * i as f64 / STEPS as f64).cos()).collect())
+}
+
 /// The steady-state model with the contact's timing at one operating point.
 #[derive(Debug, Clone)]
 pub struct ContactModel {
@@ -258,8 +265,8 @@ pub struct ContactModel {
     /// The guide's viscous drag (`slider.damping_n_s_per_m`).
     guide_n_s_per_m: f64,
     effects: Effects,
-    /// cos φ at the step ends.
-    cos_end: Vec<f64>,
+    /// cos φ at the step ends ([`cos_ends`]).
+    cos_end: &'static [f64],
 }
 
 /// The carriage's periodic motion at one load.
@@ -296,7 +303,7 @@ impl ContactModel {
             mu_stick: mu_stick * stick_scale,
             guide_n_s_per_m: p.slider.damping_n_s_per_m,
             effects,
-            cos_end: (1..=STEPS).map(|i| (-PI + TAU * i as f64 / STEPS as f64).cos()).collect(),
+            cos_end: cos_ends(),
         }
     }
 
@@ -304,6 +311,8 @@ impl ContactModel {
     /// layer).
     fn period(&self, v0: f64, mut layer: Layer, load_n: f64) -> (f64, f64, f64, Layer) {
         let h = 1.0 / (self.profile.frequency_hz * STEPS as f64);
+        // A multiplication, not a division, on the speed's chain from step to step.
+        let h_per_kg = h / self.mass_kg;
         let (mut v, mut sum, mut lo, mut hi) = (v0, 0.0, v0, v0);
         let plain = self.effects.is_none();
         let preload_factor = self.effects.friction_factor(self.profile.preload_n);
@@ -330,7 +339,7 @@ impl ContactModel {
                 mu_scale,
             };
             let friction = layer.step(&self.law, &input);
-            v += h * (external_n + friction) / self.mass_kg;
+            v += (external_n + friction) * h_per_kg;
             sum += v;
             lo = lo.min(v);
             hi = hi.max(v);
