@@ -107,6 +107,13 @@ fn exact_and_paper_contact_angle_agree_at_full_contact_and_differ_below() {
     // Hand check of the exact relation at θc = 3π/2: F0/(kc·Yc) = (2 sin(3π/4) − (3π/2) cos(3π/4))/(2π).
     let ratio = (2.0 * (0.75 * PI).sin() - 1.5 * PI * (0.75 * PI).cos()) / TAU;
     assert!((contact_angle_exact(ratio * kc_yc, kc_yc) - 1.5 * PI).abs() < 1e-9);
+    // The solve inverts the exact relation over the whole range (the angle from the forward
+    // closed form back to itself), down to arcs of a hundredth of a radian.
+    for i in 1..200 {
+        let theta = TAU * f64::from(i) / 200.0;
+        let back = contact_angle_exact(mean_contact_exact(theta) * kc_yc, kc_yc);
+        assert!((back - theta).abs() < 1e-9 * theta.max(1.0), "θc {theta}: solved {back}");
+    }
 }
 
 #[test]
