@@ -22,8 +22,10 @@
 //!    Where the foot lands with an impact, they may repeat only every few periods: the landing
 //!    is located to that 1/1024 of a step, and on the sourced prototype at 5–17 N the impulses
 //!    then alternate in a pattern of 2–4 periods whose periods differ by 2e-5 to 2e-4 of the
-//!    preload (a step's mean), while the one-period test asks 1e-5. One whole pattern of up to
-//!    [`MAX_PATTERN`] periods is then kept, and the carriage's orbit runs over it. Where the
+//!    preload (a step's mean), while the one-period test asks 1e-5. A pattern of up to
+//!    [`MAX_PATTERN`] periods is then looked for: one whose periods differ by less than
+//!    [`ROUNDING_SHARE`] is the rounding and is kept as its mean period; a larger one (a real
+//!    subharmonic) is kept whole, and the carriage's orbit runs over all of it. Where the
 //!    foot repeats nothing within [`MAX_PERIODS`] (chaotic bouncing: 5 and 8 N at 100 V and
 //!    2.1 kHz) the last [`UNSETTLED_PERIODS`] periods are kept as they are
 //!    ([`ContactProfile::settled`] says which). Holds wherever the stator's equations do: the
@@ -84,6 +86,10 @@ pub const UNSETTLED_PERIODS: usize = 8;
 /// 60 and 100 V, 0.9–2.1 kHz) shows patterns of 2–4 periods, found after 43–405 periods where
 /// the one-period test ran to [`MAX_PERIODS`]; the profiles of that grid took half the periods.
 pub const MAX_PATTERN: usize = 16;
+/// A pattern whose periods differ from their mean by less than this share of the preload (a
+/// step's mean) is the landing's rounding (2e-5 to 2e-4 on the sourced prototype's paper grid)
+/// and is solved as its mean period.
+pub const ROUNDING_SHARE: f64 = 1e-3;
 
 type M7 = SMatrix<f64, 7, 7>;
 type V7 = SMatrix<f64, 7, 1>;
@@ -189,8 +195,9 @@ impl ContactProfile {
             // decaying transient can pass for a shorter pattern for a period or two).
             let seen = |k: usize| if k == 1 { 1 } else { 2 * k };
             if let Some(k) = (1..=MAX_PATTERN).find(|&k| period > 3 && streak[k] >= seen(k)) {
+                let pattern: Vec<&Vec<f64>> = recent.iter().skip(recent.len() - k).collect();
                 return ContactProfile {
-                    contact_n: recent.iter().skip(recent.len() - k).flatten().copied().collect(),
+                    contact_n: one_period_if_rounding(&pattern, scale),
                     foot_peak_m_s: w * amp.xc_m,
                     frequency_hz: op.frequency_hz,
                     voltage_v: op.voltage_v,
@@ -220,6 +227,24 @@ impl ContactProfile {
     /// Share of the period in which the foot presses.
     pub fn contact_fraction(&self) -> f64 {
         self.contact_n.iter().filter(|f| **f > 0.0).count() as f64 / self.contact_n.len() as f64
+    }
+}
+
+/// A repeating pattern's impulses: their mean over the pattern as one period where its periods
+/// differ from that mean by less than [`ROUNDING_SHARE`] of the preload (a step's mean): the
+/// landing's rounding, not a subharmonic, and the orbit over one period costs 1/k of it;
+/// else the whole pattern.
+fn one_period_if_rounding(pattern: &[&Vec<f64>], scale: f64) -> Vec<f64> {
+    let k = pattern.len() as f64;
+    let mean: Vec<f64> = (0..STEPS).map(|i| pattern.iter().map(|p| p[i]).sum::<f64>() / k).collect();
+    let spread = pattern
+        .iter()
+        .map(|p| p.iter().zip(&mean).map(|(a, b)| (a - b).abs()).sum::<f64>() / STEPS as f64)
+        .fold(0.0, f64::max);
+    if spread < ROUNDING_SHARE * scale {
+        mean
+    } else {
+        pattern.iter().flat_map(|p| p.iter().copied()).collect()
     }
 }
 
