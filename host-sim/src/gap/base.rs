@@ -20,6 +20,7 @@
 use super::fit::{fit as lm_fit, Data, Fit, Model};
 pub use super::surrogate::{closed_params, new_anchor, wants_contact, Anchor, ProfileCache};
 use crate::motor::effects::model_speed_m_s;
+use crate::motor::steady_contact::OrbitStart;
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -44,24 +45,24 @@ pub const ANCHOR_TOLERANCE: f64 = 1e-3;
 const SLOPE_STEP: f64 = 0.05;
 
 /// `v_contact − v_closed` of `model` at parameters `x` for every data row (in parallel): one
-/// contact-model evaluation of each row, its orbit searched near `hints` (per row, NaN: none).
-/// Returns the differences and each row's orbit start speed.
+/// contact-model evaluation of each row, its orbit searched near `hints` (per row, None: none).
+/// Returns the differences and where each row's orbit starts.
 fn differences(
     model: &Model,
     cache: &ProfileCache,
     x: &[f64],
     data: &Data,
-    hints: &[f64],
-) -> (Vec<f64>, Vec<f64>) {
+    hints: &[Option<OrbitStart>],
+) -> (Vec<f64>, Vec<Option<OrbitStart>>) {
     let p = model.params_at(x);
     let q = closed_params(&p);
     data.conds
         .par_iter()
         .enumerate()
         .map(|(i, c)| {
-            let hint = hints.get(i).copied().filter(|h| h.is_finite());
-            let (v, v0) = cache.speed_near(&p, c, hint);
-            (v - model_speed_m_s(&q, c), v0.unwrap_or(f64::NAN))
+            let hint = hints.get(i).copied().flatten();
+            let (v, start) = cache.speed_near(&p, c, hint);
+            (v - model_speed_m_s(&q, c), start)
         })
         .unzip()
 }
@@ -75,7 +76,7 @@ fn anchored(
     x: &[f64],
     data: &Data,
     reuse: Option<&Anchor>,
-    hints: &[f64],
+    hints: &[Option<OrbitStart>],
 ) -> Anchor {
     let (delta, v0) = differences(model, cache, x, data, hints);
     let known = reuse.filter(|r| r.slope.len() == data.len()).map_or(0, |r| r.x.len().min(x.len()));
@@ -105,7 +106,7 @@ fn anchored(
         x: Arc::new(x.to_vec()),
         delta_m_s: Arc::new(delta),
         slope: Arc::new(slope),
-        v0_m_s: Arc::new(v0),
+        starts: Arc::new(v0),
     }
 }
 
@@ -113,11 +114,11 @@ fn anchored(
 /// row) and the contact model's fit there.
 fn moved_anchor(model: &Model, anchor: &Anchor, x: &[f64], data: &Data, rows: &[usize]) -> (Model, Fit) {
     let mut m = model.clone();
-    let (delta, v0) = differences(model, &anchor.cache, x, data, &anchor.v0_m_s);
+    let (delta, v0) = differences(model, &anchor.cache, x, data, &anchor.starts);
     m.anchor = Some(Anchor {
         delta_m_s: Arc::new(delta),
         x: Arc::new(x.to_vec()),
-        v0_m_s: Arc::new(v0),
+        starts: Arc::new(v0),
         ..anchor.clone()
     });
     let f = lm_fit(&m, data, rows, &[x.to_vec()], 0);
@@ -149,7 +150,7 @@ pub fn fit_anchored(
     let cache = prior.cache.clone();
     let x0 = starts.first().cloned().unwrap_or_else(|| vec![0.0; model.n_params()]);
     let mut m = model.clone();
-    m.anchor = Some(anchored(model, &cache, &x0, data, reuse_slopes.then_some(prior), &prior.v0_m_s));
+    m.anchor = Some(anchored(model, &cache, &x0, data, reuse_slopes.then_some(prior), &prior.starts));
     let mut here = lm_fit(&m, data, rows, &[x0], 0);
     let mut starts: Vec<Vec<f64>> = starts.to_vec();
     for round in 1..=max_anchors {
@@ -197,7 +198,7 @@ pub fn fit_anchored(
         if gain < ANCHOR_TOLERANCE || round == max_anchors {
             break;
         }
-        let hints = m.anchor.as_ref().map(|a| a.v0_m_s.clone()).unwrap_or_default();
+        let hints = m.anchor.as_ref().map(|a| a.starts.clone()).unwrap_or_default();
         m.anchor = Some(anchored(&m, &cache, &here.x, data, None, &hints));
         starts = vec![here.x.clone()];
     }

@@ -6,7 +6,7 @@ use crate::motor::effects::{model_speed_m_s, Condition};
 use crate::motor::params::{Params, SteadyModel};
 use crate::motor::plant::contact_spring;
 use crate::motor::steady::OperatingPoint;
-use crate::motor::steady_contact::{ContactModel, ContactProfile};
+use crate::motor::steady_contact::{ContactModel, ContactProfile, OrbitStart};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
@@ -44,13 +44,18 @@ impl ProfileCache {
         self.speed_near(p, c, None).0
     }
 
-    /// [`Self::speed_m_s`] with the orbit searched first near `hint_v0` (the start speed of the
-    /// same row's orbit at nearby parameters); returns the speed and the orbit's start speed.
-    /// The hint only shortens the search: the orbit is the same to its tolerance.
-    pub fn speed_near(&self, p: &Params, c: &Condition, hint_v0: Option<f64>) -> (f64, Option<f64>) {
+    /// [`Self::speed_m_s`] with the orbit searched first near `hint` (where the same row's orbit
+    /// starts at nearby parameters); returns the speed and where the orbit starts. The hint only
+    /// shortens the search: the orbit is the same to its tolerance.
+    pub fn speed_near(
+        &self,
+        p: &Params,
+        c: &Condition,
+        hint: Option<OrbitStart>,
+    ) -> (f64, Option<OrbitStart>) {
         let model = ContactModel::with_profile(p, self.profile(p, c), c.direction);
-        match model.orbit_near(c.load_n, hint_v0) {
-            Some((orbit, v0)) => (orbit.mean_speed_m_s, Some(v0)),
+        match model.orbit_near(c.load_n, hint) {
+            Some((orbit, start)) => (orbit.mean_speed_m_s, Some(start)),
             None => (closed_speed_m_s(p, c), None),
         }
     }
@@ -68,10 +73,10 @@ pub struct Anchor {
     pub delta_m_s: Arc<Vec<f64>>,
     /// `∂(v_contact − v_closed)/∂x_k` at the anchor, row-major per data row.
     pub slope: Arc<Vec<Vec<f64>>>,
-    /// Each row's orbit start speed at the anchor (NaN: none): where this model's next
+    /// Where each row's orbit starts at the anchor (None: no orbit): where this model's next
     /// evaluations begin their search. Kept per anchor, not shared between models, so that a
     /// fit's path does not depend on what other fits ran at the same time.
-    pub v0_m_s: Arc<Vec<f64>>,
+    pub starts: Arc<Vec<Option<OrbitStart>>>,
 }
 
 impl Anchor {
@@ -112,6 +117,6 @@ pub fn new_anchor(p: &Params, rows: usize) -> Option<Anchor> {
         x: Arc::new(Vec::new()),
         delta_m_s: Arc::new(vec![0.0; rows]),
         slope: Arc::new(Vec::new()),
-        v0_m_s: Arc::new(Vec::new()),
+        starts: Arc::new(Vec::new()),
     })
 }

@@ -294,6 +294,15 @@ pub struct ContactModel {
     cos_end: &'static [f64],
 }
 
+/// Where a periodic motion starts: the carriage's speed and the friction layer's state at the
+/// start of a period. A nearby solution's start is where the next search begins
+/// ([`ContactModel::orbit_near`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OrbitStart {
+    pub v0_m_s: f64,
+    pub layer: Layer,
+}
+
 /// The carriage's periodic motion at one load.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Orbit {
@@ -378,24 +387,28 @@ impl ContactModel {
         self.orbit_near(load_n, None).map(|(orbit, _)| orbit)
     }
 
-    /// [`Self::orbit`] searched first within 2 % of the foot's peak speed about `hint_v0` (a
-    /// period's start speed of a nearby solution, e.g. the same point with other friction), the
-    /// bracket widened fourfold until it holds the root. Returns the orbit and its start speed.
-    /// The root is the same as from the full bracket (to [`ROOT_TOLERANCE`] of the foot's peak speed); only
-    /// the periods spent finding it are fewer.
-    pub fn orbit_near(&self, load_n: f64, hint_v0: Option<f64>) -> Option<(Orbit, f64)> {
+    /// [`Self::orbit`] searched first within 2 % of the foot's peak speed about `hint`'s start
+    /// speed (a nearby solution's, e.g. the same point with other friction), the bracket widened
+    /// fourfold until it holds the root, the friction layer starting from the hint's. Returns the
+    /// orbit and where it starts. The root is the same as from the full bracket (to
+    /// [`ROOT_TOLERANCE`] of the foot's peak speed); only the periods spent finding it are fewer.
+    pub fn orbit_near(&self, load_n: f64, hint: Option<OrbitStart>) -> Option<(Orbit, OrbitStart)> {
         let w = self.foot_peak_m_s.abs().max(1e-9);
+        let hint_v0 = hint.map(|h| h.v0_m_s);
         // v(T) − v(0) and the period's mean speed and ripple, from v(0).
         // The friction layer's state at the period's start, carried from one evaluation to the
-        // next: the first settles it over a period from rest; a later v(0) is near the last
-        // one, whose end state is then nearly its own periodic start (one period, not two).
-        let carried: std::cell::Cell<Option<Layer>> = std::cell::Cell::new(None);
+        // next: the first settles it over a period from rest (or takes a nearby solution's); a
+        // later v(0) is near the last one, whose end state is then nearly its own periodic
+        // start (one period, not two). The layer's own time constant, ct/kt, is microseconds.
+        let carried: std::cell::Cell<Option<Layer>> = std::cell::Cell::new(hint.map(|h| h.layer));
         let excess = |v0: f64| {
             let start = carried.get().unwrap_or_else(|| self.period(v0, Layer::default(), load_n).3);
             let (end, mean, ripple, layer) = self.period(v0, start, load_n);
             carried.set(Some(layer));
             (end - v0, Orbit { mean_speed_m_s: mean, ripple_m_s: ripple })
         };
+        // The orbit's start: its speed, and the layer at the end of the last period evaluated.
+        let start_at = |v0_m_s: f64| OrbitStart { v0_m_s, layer: carried.get().unwrap_or_default() };
         let (lo, hi) = (-4.0 * w, 4.0 * w);
         let ((mut a, mut ea), (mut b, mut eb)) = match hint_v0.filter(|h| h.is_finite() && *h > lo && *h < hi)
         {
@@ -435,27 +448,33 @@ impl ContactModel {
             return None;
         }
         // Regula falsi (Illinois) on the falling excess, stopped when a step moves v(0) by less
-        // than the tolerance: the last point evaluated is then the orbit, within it.
+        // than the tolerance, or when the excess at the point evaluated is so small that the
+        // bracket's own slope (the excesses as evaluated, not as Illinois scales them) puts the
+        // root within the tolerance of it: the last point evaluated is then the orbit.
         let tol = ROOT_TOLERANCE * w;
         let mut last = f64::NAN;
         let mut side = 0i8;
+        let (mut raw_a, mut raw_b) = (ea, eb);
         for i in 0..60 {
             let mut m = (a * eb - b * ea) / (eb - ea);
             if !(m > a && m < b) || i % 8 == 7 {
                 m = 0.5 * (a + b);
             }
             let (em, orbit) = excess(m);
-            if (m - last).abs() < tol || b - a < tol || em == 0.0 {
-                return Some((orbit, m));
+            let slope = (raw_b - raw_a) / (b - a);
+            if (m - last).abs() < tol || b - a < tol || em.abs() < slope.abs() * tol {
+                return Some((orbit, start_at(m)));
             }
             last = m;
             if em > 0.0 {
+                raw_a = em;
                 (a, ea) = (m, em);
                 if side == 1 {
                     eb *= 0.5;
                 }
                 side = 1;
             } else {
+                raw_b = em;
                 (b, eb) = (m, em);
                 if side == -1 {
                     ea *= 0.5;
@@ -464,7 +483,8 @@ impl ContactModel {
             }
         }
         let m = 0.5 * (a + b);
-        Some((excess(m).1, m))
+        let orbit = excess(m).1;
+        Some((orbit, start_at(m)))
     }
 
     pub fn speed_at_load_m_s(&self, load_n: f64) -> Option<f64> {
