@@ -301,6 +301,8 @@ pub struct ContactModel {
 pub struct OrbitStart {
     pub v0_m_s: f64,
     pub layer: Layer,
+    /// Slope of the excess `v(T) − v(0)` over `v(0)` there (negative; NaN: not known).
+    pub slope: f64,
 }
 
 /// The carriage's periodic motion at one load.
@@ -407,8 +409,34 @@ impl ContactModel {
             carried.set(Some(layer));
             (end - v0, Orbit { mean_speed_m_s: mean, ripple_m_s: ripple })
         };
-        // The orbit's start: its speed, and the layer at the end of the last period evaluated.
-        let start_at = |v0_m_s: f64| OrbitStart { v0_m_s, layer: carried.get().unwrap_or_default() };
+        // The orbit's start: its speed, the layer at the end of the last period evaluated, and
+        // the excess' slope.
+        let start_at =
+            |v0_m_s: f64, slope: f64| OrbitStart { v0_m_s, layer: carried.get().unwrap_or_default(), slope };
+        let tol = ROOT_TOLERANCE * w;
+        // With a nearby solution's slope, secant steps from its start: the excess is close to
+        // linear there, and two or three periods find the root. Each step's slope must stay
+        // within a factor of two of the hint's (the same branch of the period map, which jumps
+        // where friction weakens with speed), else the bracketed search below runs.
+        if let Some(h) = hint.filter(|h| h.v0_m_s.is_finite() && h.slope < 0.0) {
+            let (mut x0, (mut e0, mut orbit)) = (h.v0_m_s, excess(h.v0_m_s));
+            let mut slope = h.slope;
+            for _ in 0..4 {
+                if e0.abs() < slope.abs() * tol {
+                    return Some((orbit, start_at(x0, slope)));
+                }
+                let x1 = x0 - e0 / slope;
+                if !x1.is_finite() || (x1 - h.v0_m_s).abs() > 0.5 * w {
+                    break;
+                }
+                let (e1, o1) = excess(x1);
+                let s1 = (e1 - e0) / (x1 - x0);
+                if !(s1 <= 0.5 * h.slope && s1 >= 2.0 * h.slope) {
+                    break;
+                }
+                (x0, e0, orbit, slope) = (x1, e1, o1, s1);
+            }
+        }
         let (lo, hi) = (-4.0 * w, 4.0 * w);
         let ((mut a, mut ea), (mut b, mut eb)) = match hint_v0.filter(|h| h.is_finite() && *h > lo && *h < hi)
         {
@@ -451,7 +479,6 @@ impl ContactModel {
         // than the tolerance, or when the excess at the point evaluated is so small that the
         // bracket's own slope (the excesses as evaluated, not as Illinois scales them) puts the
         // root within the tolerance of it: the last point evaluated is then the orbit.
-        let tol = ROOT_TOLERANCE * w;
         let mut last = f64::NAN;
         let mut side = 0i8;
         let (mut raw_a, mut raw_b) = (ea, eb);
@@ -463,7 +490,7 @@ impl ContactModel {
             let (em, orbit) = excess(m);
             let slope = (raw_b - raw_a) / (b - a);
             if (m - last).abs() < tol || b - a < tol || em.abs() < slope.abs() * tol {
-                return Some((orbit, start_at(m)));
+                return Some((orbit, start_at(m, slope)));
             }
             last = m;
             if em > 0.0 {
@@ -484,7 +511,7 @@ impl ContactModel {
         }
         let m = 0.5 * (a + b);
         let orbit = excess(m).1;
-        Some((orbit, start_at(m)))
+        Some((orbit, start_at(m, (raw_b - raw_a) / (b - a))))
     }
 
     pub fn speed_at_load_m_s(&self, load_n: f64) -> Option<f64> {
