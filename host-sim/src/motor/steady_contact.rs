@@ -389,9 +389,10 @@ impl ContactModel {
         self.orbit_near(load_n, None).map(|(orbit, _)| orbit)
     }
 
-    /// [`Self::orbit`] searched first within 2 % of the foot's peak speed about `hint`'s start
-    /// speed (a nearby solution's, e.g. the same point with other friction), the bracket widened
-    /// fourfold until it holds the root, the friction layer starting from the hint's. Returns the
+    /// [`Self::orbit`] searched from `hint` (a nearby solution's start, e.g. the same point with
+    /// other friction), the friction layer starting from the hint's: secant steps from its start
+    /// speed where it knows its slope, else (or when they leave its branch) a bracket of 2 % of
+    /// the foot's peak speed about it, widened fourfold until it holds the root. Returns the
     /// orbit and where it starts. The root is the same as from the full bracket (to
     /// [`ROOT_TOLERANCE`] of the foot's peak speed); only the periods spent finding it are fewer.
     pub fn orbit_near(&self, load_n: f64, hint: Option<OrbitStart>) -> Option<(Orbit, OrbitStart)> {
