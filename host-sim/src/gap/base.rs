@@ -78,7 +78,7 @@ fn anchored(
     reuse: Option<&Anchor>,
     hints: &[Option<OrbitStart>],
 ) -> Anchor {
-    let (delta, v0) = differences(model, cache, x, data, hints);
+    let (delta, starts) = differences(model, cache, x, data, hints);
     let known = reuse.filter(|r| r.slope.len() == data.len()).map_or(0, |r| r.x.len().min(x.len()));
     let mut slope: Vec<Vec<f64>> = match reuse {
         Some(r) if known > 0 => r.slope.iter().map(|g| g[..known].to_vec()).collect(),
@@ -96,7 +96,7 @@ fn anchored(
         }
         let mut xp = x.to_vec();
         xp[k] += h;
-        let (moved, _) = differences(model, cache, &xp, data, &v0);
+        let (moved, _) = differences(model, cache, &xp, data, &starts);
         for (row, (a, b)) in slope.iter_mut().zip(moved.iter().zip(&delta)) {
             row[k] = (a - b) / h;
         }
@@ -106,7 +106,7 @@ fn anchored(
         x: Arc::new(x.to_vec()),
         delta_m_s: Arc::new(delta),
         slope: Arc::new(slope),
-        starts: Arc::new(v0),
+        starts: Arc::new(starts),
     }
 }
 
@@ -114,11 +114,11 @@ fn anchored(
 /// row) and the contact model's fit there.
 fn moved_anchor(model: &Model, anchor: &Anchor, x: &[f64], data: &Data, rows: &[usize]) -> (Model, Fit) {
     let mut m = model.clone();
-    let (delta, v0) = differences(model, &anchor.cache, x, data, &anchor.starts);
+    let (delta, starts) = differences(model, &anchor.cache, x, data, &anchor.starts);
     m.anchor = Some(Anchor {
         delta_m_s: Arc::new(delta),
         x: Arc::new(x.to_vec()),
-        starts: Arc::new(v0),
+        starts: Arc::new(starts),
         ..anchor.clone()
     });
     let f = lm_fit(&m, data, rows, &[x.to_vec()], 0);
