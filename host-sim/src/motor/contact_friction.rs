@@ -38,11 +38,37 @@ pub struct StepInput {
     pub mu_scale: f64,
 }
 
-/// The friction layer's state: its shear (foot contact point minus slider) and shear rate.
+/// What the interface did over the last step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Mode {
+    /// No contact.
+    #[default]
+    Free,
+    Stick,
+    /// Sliding, the friction on the slider along +x or −x.
+    SlipForward,
+    SlipBack,
+}
+
+/// The friction layer's state: its shear (foot contact point minus slider) and shear rate, and
+/// what the interface did over the last step.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Layer {
     pub shear_m: f64,
     pub shear_rate_m_s: f64,
+    pub mode: Mode,
+}
+
+/// The mode of a step that passed `friction_n` (not sticking).
+#[inline]
+fn sliding_mode(contact_n: f64, friction_n: f64) -> Mode {
+    if contact_n <= 0.0 {
+        Mode::Free
+    } else if friction_n >= 0.0 {
+        Mode::SlipForward
+    } else {
+        Mode::SlipBack
+    }
 }
 
 impl Layer {
@@ -51,7 +77,9 @@ impl Layer {
     #[inline]
     pub fn step(&mut self, law: &FrictionLaw, i: &StepInput) -> f64 {
         if law.kt_n_per_m <= 0.0 {
-            return rigid(law, i);
+            let (friction, mode) = rigid(law, i);
+            self.mode = mode;
+            return friction;
         }
         match law.layer {
             FrictionLayer::KelvinVoigt => self.kelvin_voigt(law, i),
@@ -83,6 +111,7 @@ impl Layer {
         if i.contact_n > 0.0 && trial.abs() <= i.mu_stick * i.contact_n {
             self.shear_m += 0.5 * dt * (u0 + u);
             self.shear_rate_m_s = u;
+            self.mode = Mode::Stick;
             return trial;
         }
         // Sliding (or no contact: no force through the interface).
@@ -93,6 +122,7 @@ impl Layer {
         let s_new = (slide + ct / dt * self.shear_m) / (kt + ct / dt);
         self.shear_rate_m_s = (s_new - self.shear_m) / dt;
         self.shear_m = s_new;
+        self.mode = sliding_mode(i.contact_n, slide);
         if i.contact_n > 0.0 {
             slide + viscous(law, i, slide)
         } else {
@@ -106,6 +136,7 @@ impl Layer {
         let (dt, mass, kt, ct) = (i.dt_s, i.mass_kg, law.kt_n_per_m, law.ct_n_s_per_m);
         if i.contact_n <= 0.0 {
             self.shear_m = 0.0;
+            self.mode = Mode::Free;
             return 0.0;
         }
         let a = kt * dt + ct;
@@ -114,10 +145,12 @@ impl Layer {
         let trial = kt * (self.shear_m + dt * (i.foot_m_s - v_new)) + ct * (i.foot_m_s - v_new);
         if trial.abs() <= i.mu_stick * i.contact_n {
             self.shear_m += dt * (i.foot_m_s - v_new);
+            self.mode = Mode::Stick;
             trial
         } else {
             let slide = i.mu_scale * law.mu_dynamic * i.contact_n * trial.signum();
             self.shear_m = slide / kt;
+            self.mode = sliding_mode(i.contact_n, slide);
             slide + viscous(law, i, slide)
         }
     }
@@ -126,15 +159,15 @@ impl Layer {
 /// Rigid contact (no layer): the friction needed to make the slider move with the foot at the end
 /// of the step, if within the sticking limit; otherwise sliding friction (plus εc's viscous part)
 /// in the direction of that need.
-fn rigid(law: &FrictionLaw, i: &StepInput) -> f64 {
+fn rigid(law: &FrictionLaw, i: &StepInput) -> (f64, Mode) {
     let need = i.mass_kg * (i.foot_m_s - i.slider_m_s) / i.dt_s - i.external_n;
     if i.contact_n <= 0.0 {
-        0.0
+        (0.0, Mode::Free)
     } else if need.abs() <= i.mu_stick * i.contact_n {
-        need
+        (need, Mode::Stick)
     } else {
         let coulomb = i.mu_scale * law.mu_dynamic * i.contact_n * need.signum();
-        coulomb + viscous(law, i, coulomb)
+        (coulomb + viscous(law, i, coulomb), sliding_mode(i.contact_n, coulomb))
     }
 }
 
