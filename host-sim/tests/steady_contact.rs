@@ -281,9 +281,9 @@ fn a_search_from_a_nearby_solution_finds_the_same_orbit_as_one_from_nothing() {
 fn the_orbits_halved_steps_give_the_speeds_of_uniform_fine_steps() {
     // The carriage's steps are the base steps, halved where the contact or the interface changes
     // (`ContactModel::period`). Held against the same model on uniform fine steps (4096 per
-    // period, switches then within 1/4096 of the period) over issue 28's grid: within 1 % of the
-    // no-load speed (measured: 0.90 % at 0.1 kg, 18 N, 1.5 kHz; 0.26 % at 0.3 kg; 0.12 % from
-    // 1 kg on). 1024 uniform steps, the model's steps before, were up to 1.34 % off.
+    // period, the contact's events then within 1/4096 of the period) over issue 28's grid: within
+    // 1 % of the no-load speed (measured: 0.91 % at 0.1 kg, 18 N, 1.5 kHz; 0.24 % at 0.3 kg;
+    // 0.15 % from 1 kg on). 1024 uniform steps, the model's steps before, were up to 1.34 % off.
     use rayon::prelude::*;
     let mut points = Vec::new();
     for mass_kg in [0.1, 0.3, 1.0, 5.0, 50.0] {
