@@ -172,11 +172,6 @@ fn the_model_with_the_contacts_timing_carries_the_effects_as_the_plant_does() {
             let op = OperatingPoint { preload_n: f0, voltage_v: v, frequency_hz: f };
             let model = ContactModel::with_profile(&p, Arc::new(ContactProfile::new(&p, op)), direction);
             let load_n = load_share * p.friction.mu_dynamic * f0;
-            // The plant on steps of 0.25 µs: with `stribeck_friction` its 1 µs step is not
-            // converged (16 N, 100 V, 1.5 kHz: 2.210 mm/s on 1 µs steps, 2.088 on 0.5, 2.060 on
-            // 0.25; the model 2.018), the contact force's mean over a step at the landing
-            // deciding how much the high friction near zero slip passes.
-            p.integrator.step_s = 0.25e-6;
             let plant_no_load = steady_speed_m_s(&p, f0, v, f, direction, 0.0);
             let plant = steady_speed_m_s(&p, f0, v, f, direction, load_n);
             let speed = model.speed_at_load_m_s(load_n).unwrap_or(f64::NAN);

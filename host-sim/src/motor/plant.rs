@@ -141,6 +141,9 @@ pub fn friction_law(p: &Params, kc_n_per_m: f64, c3_n_s_per_m: f64) -> FrictionL
     }
 }
 
+/// Halvings of a plant step under slip-dependent friction (see `Plant::step`).
+const SLIP_LEVEL: usize = 3;
+
 pub struct Plant {
     p: Params,
     dt_s: f64,
@@ -178,6 +181,8 @@ pub struct Plant {
     drive_off: bool,
     // Effects beyond the base model (crate::motor::effects); all inactive in the base model.
     effects: Effects,
+    /// Coulomb friction whose sliding coefficient falls with the slip speed: sub-stepped.
+    slip_dependent: bool,
     /// Moving mass: `slider.mass_kg`, or the `slider_inertia` effect's `1/inverse_mass_per_kg`.
     slider_mass_kg: f64,
     /// Sense of the foot's ellipse (+1/−1), inferred from the two stack voltages
@@ -291,6 +296,7 @@ impl Plant {
             foot_speed_m_s: 0.0,
             drive_off: false,
             effects: p.effects.clone(),
+            slip_dependent: p.effects.stribeck_peak() > 1.0 && p.friction.model != FrictionModel::Lugre,
             slider_mass_kg: p.effects.slider_mass_kg(p.slider.mass_kg),
             drive_direction: 1,
             sense_lp: 0.0,
@@ -504,11 +510,25 @@ impl Plant {
             foot_speed *= self.effects.tangential_factor(self.drive_direction);
         }
 
-        let impulse = self.advance_normal(0, drive_n);
-        let fc = impulse / dt;
-        self.contact_force_n = fc;
+        // Where the sliding friction falls with the slip speed (`stribeck_friction`), the moment
+        // the foot lands and the interface breaks away decide how long the high friction near
+        // zero slip acts, and whole steps do not resolve them: 16 N, 100 V, 1.5 kHz, rise 1.5
+        // ran at 2.210 mm/s on 1 µs steps, 2.088 on 0.5 µs and 2.060 on 0.25 µs. There the step
+        // is taken as 2^SLIP_LEVEL sub-steps of the stator and the slider under the same drive.
+        let level = if self.slip_dependent { SLIP_LEVEL } else { 0 };
+        let foot_start = self.foot_speed_m_s;
+        let pieces = 1u32 << level;
+        let mut impulse = 0.0;
+        for k in 1..=pieces {
+            let piece = self.advance_normal(level, drive_n);
+            impulse += piece;
+            let share = f64::from(k) / f64::from(pieces);
+            let h = dt / f64::from(pieces);
+            let foot = if k == pieces { foot_speed } else { foot_start + share * (foot_speed - foot_start) };
+            self.update_slider(piece / h, foot, h);
+        }
+        self.contact_force_n = impulse / dt;
         self.foot_speed_m_s = foot_speed;
-        self.update_slider(fc, foot_speed);
         self.time_s += dt;
     }
 
@@ -545,8 +565,7 @@ impl Plant {
     }
 
     /// Slider update with the selected friction law; the foot's tangential speed is imposed.
-    fn update_slider(&mut self, fc: f64, foot_speed: f64) {
-        let dt = self.dt_s;
+    fn update_slider(&mut self, fc: f64, foot_speed: f64, dt: f64) {
         let f = &self.p.friction;
         let mass = self.slider_mass_kg;
         let mut ext =
