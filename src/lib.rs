@@ -5,6 +5,8 @@
 //! - [`sensors`]: encoder unwrapping, preload force cell;
 //! - [`model`]: fixed-point steady-state thrust model and its inverse (the feedforward);
 //! - [`inertia`]: the same model for a carriage whose speed ripples within a period (f32);
+//! - [`contact_orbit`]: the carriage's orbit under the stator's own contact force (f32; not yet
+//!   fed on the board: its normal motion is still to be ported, issue 28);
 //! - [`profile`]: online trapezoidal motion profile;
 //! - [`controller`]: state machine, position control, supervision; one entry point `step`;
 //! - [`settings`]: every controller setting declared once (id, unit, range, default, storage);
@@ -17,6 +19,7 @@
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 
 pub mod config;
+pub mod contact_orbit;
 pub mod controller;
 pub mod defaults;
 pub mod fastmath;

@@ -199,6 +199,7 @@ pub fn hot_paths() {
         }));
     }
     build_choice.print("ModelTable::build, frequency chosen from 1.2-2.2 kHz", k);
+    contact_orbit(k);
     // The same build in slices, as the board's model task runs it (yielding between them): the
     // longest slice is the longest the UART and preload tasks wait for it. A 0.1 kg carriage's
     // grid comes from its periodic motion (the heaviest rows).
@@ -363,4 +364,51 @@ fn acos_against_micromath(k: f32) {
     mm_stat.print("micromath F32Ext::acos", k);
     fx_stat.print("trig::acos (fixed point, table) + conversion in", k);
     hprintln!("  largest difference from acos_f32: micromath {} rad, trig::acos {} rad", worst_mm, worst_fx);
+}
+
+/// The contact model's carriage orbit (`contact_orbit`, not yet in the table build: issue 28
+/// item 3) on a contact force shaped like the sourced 1 kg carriage's at 16 N and 2.2 kHz: eq.
+/// (15)'s arc about the preload and a 3 µs landing impact, the default carriage's friction layer.
+/// One orbit solve (several periods) at no load and against 2 N.
+fn contact_orbit(k: f32) {
+    use piezo_drive::contact_orbit::{Carriage, ContactForce, Orbits, BASE_STEPS, FINE};
+    let sub_steps = (BASE_STEPS * FINE) as i32;
+    let force = ContactForce::from_fine(|j| {
+        // φ from −π: cos φ = −cos(j·2π/4096); the arc presses where 16 + 18·cos φ > 0.
+        let turn = Fx::from_num(core::f32::consts::TAU) * (j as i32) / sub_steps;
+        let arc = 16.0 - 18.0 * piezo_drive::trig::cos(turn).to_num::<f32>();
+        let landing = (1300..1306).contains(&j);
+        if landing {
+            120.0
+        } else {
+            arc.max(0.0)
+        }
+    });
+    let Ok(force) = force else {
+        hprintln!("contact orbit: the force did not fit");
+        return;
+    };
+    let carriage = Carriage {
+        mass_kg: 1.0,
+        kt_n_per_m: 7.7e8,
+        ct_n_s_per_m: 1350.0,
+        mu_stick: 0.35,
+        mu_dynamic: 0.35,
+        viscous_n_s_per_m: 0.0,
+        guide_n_s_per_m: 0.0,
+        foot_peak_m_s: 4.28e-3,
+        frequency_hz: 2200.0,
+    };
+    let orbits = Orbits::new(&force, carriage);
+    for load_n in [0.0f32, 2.0] {
+        let mut speed = None;
+        let c = counts(|| speed = core::hint::black_box(&orbits).mean_speed_m_s(core::hint::black_box(load_n)));
+        hprintln!(
+            "contact orbit, 1 kg, 16 N, 2.2 kHz, {} N: {} instructions, {} mm/s ({} event steps)",
+            load_n,
+            (c as f32 * k) as u32,
+            speed.unwrap_or(f32::NAN) * 1e3,
+            force.events()
+        );
+    }
 }

@@ -1,0 +1,81 @@
+//! The core's f32 copy of the contact model's carriage orbit (`piezo_drive::contact_orbit`, issue
+//! 28 item 3) against host-sim's f64 model (`steady_contact`) over issue 28's grid, both on the
+//! same contact force (the f64 model's normal motion; the core's copy of it is not written yet).
+
+use host_sim::motor::params::Params;
+use host_sim::motor::plant::{contact_spring, friction_law};
+use host_sim::motor::steady::OperatingPoint;
+use host_sim::motor::steady_contact::{ContactModel, FINE_STEPS};
+use piezo_drive::contact_orbit::{Carriage, ContactForce, Orbits};
+use rayon::prelude::*;
+
+#[test]
+fn the_cores_orbit_follows_the_f64_model_within_1_percent_over_the_grid() {
+    // Issue 28 item 3 holds the firmware's model within 1 % of the f64 model's no-load speed.
+    // Here the orbit alone, on the f64 model's own contact force: loads 0, 35 and 70 % of the f64
+    // model's stall force, 100 V, every carriage, preload and frequency of the grid whose normal
+    // motion settles into one period (the others repeat over several, which the core's single
+    // period does not hold).
+    let mut points = Vec::new();
+    for mass_kg in [0.1, 0.3, 1.0, 5.0, 50.0] {
+        for preload_n in [5.0, 10.0, 16.0, 18.0] {
+            for frequency_hz in [1500.0, 2200.0] {
+                points.push((mass_kg, preload_n, frequency_hz));
+            }
+        }
+    }
+    let results: Vec<Option<(f64, usize, (f64, f64, f64))>> = points
+        .par_iter()
+        .map(|&(mass_kg, preload_n, frequency_hz)| {
+            let mut p = Params::prototype_sourced();
+            p.slider.mass_kg = mass_kg;
+            let op = OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz };
+            let model = ContactModel::new(&p, op);
+            let profile = &model.profile;
+            if !profile.settled || profile.contact_n.len() != FINE_STEPS {
+                return None;
+            }
+            let force =
+                ContactForce::from_fine(|j| profile.contact_n[j] as f32).expect("room for the events");
+            let (kc, c3) = contact_spring(&p, preload_n);
+            let law = friction_law(&p, kc, c3);
+            let carriage = Carriage {
+                mass_kg: mass_kg as f32,
+                kt_n_per_m: law.kt_n_per_m as f32,
+                ct_n_s_per_m: law.ct_n_s_per_m as f32,
+                mu_stick: p.friction.mu_dynamic as f32,
+                mu_dynamic: p.friction.mu_dynamic as f32,
+                viscous_n_s_per_m: law.viscous_n_s_per_m as f32,
+                guide_n_s_per_m: p.slider.damping_n_s_per_m as f32,
+                foot_peak_m_s: model.foot_peak_m_s as f32,
+                frequency_hz: frequency_hz as f32,
+            };
+            let core = Orbits::new(&force, carriage);
+            let stall_n = model.stall_force_n();
+            let no_load = model.no_load_speed_m_s();
+            let off = [0.0, 0.35, 0.7]
+                .iter()
+                .map(|share| {
+                    let load_n = share * stall_n;
+                    let f64_speed = model.speed_at_load_m_s(load_n).unwrap_or(f64::NAN);
+                    let f32_speed = core.mean_speed_m_s(load_n as f32).map_or(f64::NAN, f64::from);
+                    (f32_speed - f64_speed).abs() / no_load.abs()
+                })
+                .fold(0.0, f64::max);
+            Some((off, force.events(), (mass_kg, preload_n, frequency_hz)))
+        })
+        .collect();
+    let held: Vec<_> = results.iter().flatten().collect();
+    let worst =
+        held.iter().fold((0.0, 0, (0.0, 0.0, 0.0)), |a, b| if b.0 > a.0 || b.0.is_nan() { **b } else { a });
+    let most_events = held.iter().map(|r| r.1).max().unwrap_or(0);
+    eprintln!(
+        "{} of {} points: worst {:.2} % at {:?}; at most {most_events} event steps",
+        held.len(),
+        points.len(),
+        worst.0 * 100.0,
+        worst.2
+    );
+    assert!(held.len() >= 30, "only {} points settle into one period", held.len());
+    assert!(worst.0 < 0.01, "{:.2} % at (kg, N, Hz) {:?}", worst.0 * 100.0, worst.2);
+}
