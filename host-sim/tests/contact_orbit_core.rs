@@ -9,6 +9,10 @@ use host_sim::motor::steady_contact::{ContactModel, FINE_STEPS};
 use piezo_drive::contact_orbit::{Carriage, ContactForce, Orbits};
 use rayon::prelude::*;
 
+/// At one grid point: the worst difference in no-load speeds, the event steps kept, and the
+/// point (kg, N, Hz).
+type Verdict = (f64, usize, (f64, f64, f64));
+
 #[test]
 fn the_cores_orbit_follows_the_f64_model_within_1_percent_over_the_grid() {
     // Issue 28 item 3 holds the firmware's model within 1 % of the f64 model's no-load speed.
@@ -24,7 +28,7 @@ fn the_cores_orbit_follows_the_f64_model_within_1_percent_over_the_grid() {
             }
         }
     }
-    let results: Vec<Option<(f64, usize, (f64, f64, f64))>> = points
+    let results: Vec<Option<Verdict>> = points
         .par_iter()
         .map(|&(mass_kg, preload_n, frequency_hz)| {
             let mut p = Params::prototype_sourced();
