@@ -46,17 +46,19 @@ impl GridPoint {
     }
 }
 
+/// The grid's operating points: (carriage kg, preload N, frequency Hz), every combination.
+pub fn operating_points() -> Vec<(f64, f64, f64)> {
+    MASSES_KG
+        .iter()
+        .flat_map(|&m| {
+            PRELOADS_N.iter().flat_map(move |&f0| FREQUENCIES_HZ.iter().map(move |&hz| (m, f0, hz)))
+        })
+        .collect()
+}
+
 /// The grid at 100 V for the file `p` (its carriage mass replaced by each of [`MASSES_KG`]).
 pub fn compute(p: &Params) -> Vec<GridPoint> {
-    let mut cases = Vec::new();
-    for &m in &MASSES_KG {
-        for &f0 in &PRELOADS_N {
-            for &hz in &FREQUENCIES_HZ {
-                cases.push((m, f0, hz));
-            }
-        }
-    }
-    cases
+    operating_points()
         .par_iter()
         .flat_map_iter(|&(mass_kg, preload_n, frequency_hz)| {
             let mut q = p.clone();

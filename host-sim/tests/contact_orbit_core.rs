@@ -20,14 +20,7 @@ fn the_cores_orbit_follows_the_f64_model_within_1_percent_over_the_grid() {
     // model's stall force, 100 V, every carriage, preload and frequency of the grid whose normal
     // motion settles into one period (the others repeat over several, which the core's single
     // period does not hold).
-    let mut points = Vec::new();
-    for mass_kg in [0.1, 0.3, 1.0, 5.0, 50.0] {
-        for preload_n in [5.0, 10.0, 16.0, 18.0] {
-            for frequency_hz in [1500.0, 2200.0] {
-                points.push((mass_kg, preload_n, frequency_hz));
-            }
-        }
-    }
+    let points = host_sim::model_grid::operating_points();
     let results: Vec<Option<Verdict>> = points
         .par_iter()
         .map(|&(mass_kg, preload_n, frequency_hz)| {

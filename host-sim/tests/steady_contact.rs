@@ -280,14 +280,7 @@ fn the_orbits_halved_steps_give_the_speeds_of_uniform_fine_steps() {
     // 1 % of the no-load speed (measured: 0.91 % at 0.1 kg, 18 N, 1.5 kHz; 0.24 % at 0.3 kg;
     // 0.15 % from 1 kg on). 1024 uniform steps, the model's steps before, were up to 1.34 % off.
     use rayon::prelude::*;
-    let mut points = Vec::new();
-    for mass_kg in [0.1, 0.3, 1.0, 5.0, 50.0] {
-        for preload_n in [5.0, 10.0, 16.0, 18.0] {
-            for frequency_hz in [1500.0, 2200.0] {
-                points.push((mass_kg, preload_n, frequency_hz));
-            }
-        }
-    }
+    let points = host_sim::model_grid::operating_points();
     let worst = points
         .par_iter()
         .map(|&(mass_kg, preload_n, frequency_hz)| {
