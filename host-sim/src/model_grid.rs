@@ -56,6 +56,23 @@ pub fn operating_points() -> Vec<(f64, f64, f64)> {
         .collect()
 }
 
+/// The largest difference between two speed laws (m/s against load N) over [`LOAD_SHARES`] of
+/// `stall_n`, as a share of `no_load_m_s` (NaN where either has no speed).
+pub fn worst_over_loads(
+    stall_n: f64,
+    no_load_m_s: f64,
+    a: impl Fn(f64) -> f64,
+    b: impl Fn(f64) -> f64,
+) -> f64 {
+    LOAD_SHARES
+        .iter()
+        .map(|share| {
+            let load_n = share * stall_n;
+            (a(load_n) - b(load_n)).abs() / no_load_m_s.abs()
+        })
+        .fold(0.0, |w, d| if d.is_nan() || w.is_nan() { f64::NAN } else { w.max(d) })
+}
+
 /// The grid at 100 V for the file `p` (its carriage mass replaced by each of [`MASSES_KG`]).
 pub fn compute(p: &Params) -> Vec<GridPoint> {
     operating_points()

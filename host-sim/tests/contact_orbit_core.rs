@@ -50,15 +50,12 @@ fn the_cores_orbit_follows_the_f64_model_within_1_percent_over_the_grid() {
             let core = Orbits::new(&force, carriage);
             let stall_n = model.stall_force_n();
             let no_load = model.no_load_speed_m_s();
-            let off = [0.0, 0.35, 0.7]
-                .iter()
-                .map(|share| {
-                    let load_n = share * stall_n;
-                    let f64_speed = model.speed_at_load_m_s(load_n).unwrap_or(f64::NAN);
-                    let f32_speed = core.mean_speed_m_s(load_n as f32).map_or(f64::NAN, f64::from);
-                    (f32_speed - f64_speed).abs() / no_load.abs()
-                })
-                .fold(0.0, f64::max);
+            let off = host_sim::model_grid::worst_over_loads(
+                stall_n,
+                no_load,
+                |load_n| model.speed_at_load_m_s(load_n).unwrap_or(f64::NAN),
+                |load_n| core.mean_speed_m_s(load_n as f32).map_or(f64::NAN, f64::from),
+            );
             Some((off, force.events(), (mass_kg, preload_n, frequency_hz)))
         })
         .collect();

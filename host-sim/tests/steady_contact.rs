@@ -291,15 +291,12 @@ fn the_orbits_halved_steps_give_the_speeds_of_uniform_fine_steps() {
             let fine = model.clone().on_fine_steps();
             let stall_n = fine.stall_force_n();
             let no_load = fine.no_load_speed_m_s();
-            let off = [0.0, 0.35, 0.7]
-                .iter()
-                .map(|share| {
-                    let load_n = share * stall_n;
-                    let a = model.speed_at_load_m_s(load_n).unwrap_or(f64::NAN);
-                    let b = fine.speed_at_load_m_s(load_n).unwrap_or(f64::NAN);
-                    (a - b).abs() / no_load.abs()
-                })
-                .fold(0.0, f64::max);
+            let off = host_sim::model_grid::worst_over_loads(
+                stall_n,
+                no_load,
+                |load_n| model.speed_at_load_m_s(load_n).unwrap_or(f64::NAN),
+                |load_n| fine.speed_at_load_m_s(load_n).unwrap_or(f64::NAN),
+            );
             (off, (mass_kg, preload_n, frequency_hz))
         })
         .reduce(|| (0.0, (0.0, 0.0, 0.0)), |a, b| if b.0 > a.0 || b.0.is_nan() { b } else { a });
