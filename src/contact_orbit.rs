@@ -150,11 +150,21 @@ enum Mode {
 }
 
 /// The friction layer's shear and shear rate, and the interface's last mode.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
 struct Layer {
     shear_m: f32,
     rate_m_s: f32,
     mode: Mode,
+}
+
+/// Where an orbit starts: the start speed, the layer there and the slope of the period's excess
+/// `v(T) − v(0)` against `v(0)`. A nearby orbit's start (the next load of a table) is where
+/// [`Orbits::orbit_near`] begins.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Start {
+    pub v0_m_s: f32,
+    layer: Layer,
+    pub slope: f32,
 }
 
 /// A period under way: speed, layer, Σ speed × sub-steps.
@@ -266,6 +276,45 @@ impl<'a> Orbits<'a> {
     /// falsi (Illinois) on the period's start speed to 1e-4 of the foot's peak speed, the layer
     /// carried from one period to the next; `None` where no orbit starts within ±16 foot speeds.
     pub fn mean_speed_m_s(&self, load_n: f32) -> Option<f32> {
+        self.orbit_near(load_n, None).map(|(mean, _)| mean)
+    }
+
+    /// [`Self::mean_speed_m_s`] from a nearby orbit's start: secant steps from it while the
+    /// excess' slope stays within a factor of two of the hint's (the same branch of the period
+    /// map), else the bracketed search. Returns the mean speed and this orbit's start.
+    pub fn orbit_near(&self, load_n: f32, hint: Option<Start>) -> Option<(f32, Start)> {
+        let w = self.c.foot_peak_m_s.abs().max(1e-9);
+        let tol = 1e-4 * w;
+        if let Some(h) = hint.filter(|h| h.v0_m_s.is_finite() && h.slope < 0.0) {
+            let mut layer = h.layer;
+            let mut excess = |v0: f32| {
+                let (end, mean, l) = self.period(v0, layer, load_n);
+                layer = l;
+                (end - v0, mean)
+            };
+            let (mut x0, (mut e0, mut mean)) = (h.v0_m_s, excess(h.v0_m_s));
+            let mut slope = h.slope;
+            for _ in 0..4 {
+                if e0.abs() < slope.abs() * tol {
+                    return Some((mean, Start { v0_m_s: x0, layer, slope }));
+                }
+                let x1 = x0 - e0 / slope;
+                if !x1.is_finite() || (x1 - h.v0_m_s).abs() > 0.5 * w {
+                    break;
+                }
+                let (e1, m1) = excess(x1);
+                let s1 = (e1 - e0) / (x1 - x0);
+                if !(s1 <= 0.5 * h.slope && s1 >= 2.0 * h.slope) {
+                    break;
+                }
+                (x0, e0, mean, slope) = (x1, e1, m1, s1);
+            }
+        }
+        self.bracketed(load_n)
+    }
+
+    /// The bracketed search of [`Self::orbit_near`].
+    fn bracketed(&self, load_n: f32) -> Option<(f32, Start)> {
         let w = self.c.foot_peak_m_s.abs().max(1e-9);
         let mut layer = self.period(0.0, Layer::default(), load_n).2;
         let mut excess = |v0: f32| {
@@ -287,24 +336,27 @@ impl<'a> Orbits<'a> {
             return None;
         }
         let tol = 1e-4 * w;
-        let (mut side, mut mean) = (0i8, f32::NAN);
+        let (mut side, mut mean, mut at) = (0i8, f32::NAN, 0.0f32);
+        let (mut raw_lo, mut raw_hi) = (e_lo, e_hi);
         for i in 0..40 {
             let mut m = (lo * e_hi - hi * e_lo) / (e_hi - e_lo);
             if !(m > lo && m < hi) || i % 8 == 7 {
                 m = 0.5 * (lo + hi);
             }
             let (e, mm) = excess(m);
-            mean = mm;
+            (mean, at) = (mm, m);
             if hi - lo < tol || e.abs() < 1e-6 * w {
                 break;
             }
             if e > 0.0 {
+                raw_lo = e;
                 (lo, e_lo) = (m, e);
                 if side == 1 {
                     e_hi *= 0.5;
                 }
                 side = 1;
             } else {
+                raw_hi = e;
                 (hi, e_hi) = (m, e);
                 if side == -1 {
                     e_lo *= 0.5;
@@ -312,7 +364,7 @@ impl<'a> Orbits<'a> {
                 side = -1;
             }
         }
-        Some(mean)
+        Some((mean, Start { v0_m_s: at, layer, slope: (raw_hi - raw_lo) / (hi - lo) }))
     }
 }
 

@@ -73,3 +73,53 @@ fn the_cores_orbit_follows_the_f64_model_within_1_percent_over_the_grid() {
     assert!(held.len() >= 30, "only {} points settle into one period", held.len());
     assert!(worst.0 < 0.01, "{:.2} % at (kg, N, Hz) {:?}", worst.0 * 100.0, worst.2);
 }
+
+#[test]
+fn the_cores_hinted_orbits_are_the_cold_ones() {
+    // A speed table's loads in a row, each solved from the last one's start (as a table build
+    // would), against each solved from nothing: the same orbit to a tenth of the grid's 1 %.
+    for (mass_kg, preload_n, frequency_hz) in [(0.3, 16.0, 2200.0), (1.0, 5.0, 1500.0), (50.0, 10.0, 2200.0)]
+    {
+        let mut p = Params::prototype_sourced();
+        p.slider.mass_kg = mass_kg;
+        let op = OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz };
+        let model = ContactModel::new(&p, op);
+        let profile = &model.profile;
+        let Ok(force) = ContactForce::from_fine(|j| profile.contact_n[j % profile.contact_n.len()] as f32)
+        else {
+            panic!("room for the events at {op:?}");
+        };
+        let (kc, c3) = contact_spring(&p, preload_n);
+        let law = friction_law(&p, kc, c3);
+        let core = Orbits::new(
+            &force,
+            Carriage {
+                mass_kg: mass_kg as f32,
+                kt_n_per_m: law.kt_n_per_m as f32,
+                ct_n_s_per_m: law.ct_n_s_per_m as f32,
+                mu_stick: p.friction.mu_dynamic as f32,
+                mu_dynamic: p.friction.mu_dynamic as f32,
+                viscous_n_s_per_m: law.viscous_n_s_per_m as f32,
+                guide_n_s_per_m: p.slider.damping_n_s_per_m as f32,
+                foot_peak_m_s: model.foot_peak_m_s as f32,
+                frequency_hz: frequency_hz as f32,
+            },
+        );
+        let stall_n = model.stall_force_n() as f32;
+        let no_load = core.mean_speed_m_s(0.0).expect("an orbit at no load");
+        let mut hint = None;
+        for k in 0..17 {
+            let load_n = stall_n * 0.8 * k as f32 / 16.0;
+            let Some((hinted, start)) = core.orbit_near(load_n, hint) else {
+                panic!("no orbit at {load_n} N")
+            };
+            let cold = core.mean_speed_m_s(load_n).expect("an orbit from nothing");
+            assert!(
+                (hinted - cold).abs() < 1e-3 * no_load.abs(),
+                "{mass_kg} kg {preload_n} N at {load_n} N: {hinted} against {cold}"
+            );
+            assert!(start.slope < 0.0, "the excess falls with the start speed: {start:?}");
+            hint = Some(start);
+        }
+    }
+}
