@@ -13,6 +13,24 @@ use rayon::prelude::*;
 /// point (kg, N, Hz).
 type Verdict = (f64, usize, (f64, f64, f64));
 
+/// The core's carriage for the f64 model `model` of parameter set `p` (its mass, friction layer,
+/// friction, guide and foot speed, all as the f64 model takes them).
+fn core_carriage(p: &Params, model: &ContactModel) -> Carriage {
+    let (kc, c3) = contact_spring(p, model.profile.preload_n);
+    let law = friction_law(p, kc, c3);
+    Carriage {
+        mass_kg: model.mass_kg as f32,
+        kt_n_per_m: law.kt_n_per_m as f32,
+        ct_n_s_per_m: law.ct_n_s_per_m as f32,
+        mu_stick: p.friction.mu_dynamic as f32,
+        mu_dynamic: p.friction.mu_dynamic as f32,
+        viscous_n_s_per_m: law.viscous_n_s_per_m as f32,
+        guide_n_s_per_m: p.slider.damping_n_s_per_m as f32,
+        foot_peak_m_s: model.foot_peak_m_s as f32,
+        frequency_hz: model.profile.frequency_hz as f32,
+    }
+}
+
 #[test]
 fn the_cores_orbit_follows_the_f64_model_within_1_percent_over_the_grid() {
     // Issue 28 item 3 holds the firmware's model within 1 % of the f64 model's no-load speed.
@@ -34,20 +52,7 @@ fn the_cores_orbit_follows_the_f64_model_within_1_percent_over_the_grid() {
             }
             let force =
                 ContactForce::from_fine(|j| profile.contact_n[j] as f32).expect("room for the events");
-            let (kc, c3) = contact_spring(&p, preload_n);
-            let law = friction_law(&p, kc, c3);
-            let carriage = Carriage {
-                mass_kg: mass_kg as f32,
-                kt_n_per_m: law.kt_n_per_m as f32,
-                ct_n_s_per_m: law.ct_n_s_per_m as f32,
-                mu_stick: p.friction.mu_dynamic as f32,
-                mu_dynamic: p.friction.mu_dynamic as f32,
-                viscous_n_s_per_m: law.viscous_n_s_per_m as f32,
-                guide_n_s_per_m: p.slider.damping_n_s_per_m as f32,
-                foot_peak_m_s: model.foot_peak_m_s as f32,
-                frequency_hz: frequency_hz as f32,
-            };
-            let core = Orbits::new(&force, carriage);
+            let core = Orbits::new(&force, core_carriage(&p, &model));
             let stall_n = model.stall_force_n();
             let no_load = model.no_load_speed_m_s();
             let off = host_sim::model_grid::worst_over_loads(
@@ -89,22 +94,7 @@ fn the_cores_hinted_orbits_are_the_cold_ones() {
         else {
             panic!("room for the events at {op:?}");
         };
-        let (kc, c3) = contact_spring(&p, preload_n);
-        let law = friction_law(&p, kc, c3);
-        let core = Orbits::new(
-            &force,
-            Carriage {
-                mass_kg: mass_kg as f32,
-                kt_n_per_m: law.kt_n_per_m as f32,
-                ct_n_s_per_m: law.ct_n_s_per_m as f32,
-                mu_stick: p.friction.mu_dynamic as f32,
-                mu_dynamic: p.friction.mu_dynamic as f32,
-                viscous_n_s_per_m: law.viscous_n_s_per_m as f32,
-                guide_n_s_per_m: p.slider.damping_n_s_per_m as f32,
-                foot_peak_m_s: model.foot_peak_m_s as f32,
-                frequency_hz: frequency_hz as f32,
-            },
-        );
+        let core = Orbits::new(&force, core_carriage(&p, &model));
         let stall_n = model.stall_force_n() as f32;
         let no_load = core.mean_speed_m_s(0.0).expect("an orbit at no load");
         let mut hint = None;
