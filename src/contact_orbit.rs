@@ -46,6 +46,97 @@ pub struct ContactForce {
 pub enum ForceError {
     /// More than [`MAX_EVENTS`] base steps need their sub-steps.
     TooManyEvents,
+    /// Not exactly [`BASE_STEPS`] base steps were given.
+    Incomplete,
+}
+
+/// The force at a base-step edge from the sub-step means either side: their mean while the foot
+/// presses on both sides; a contact that starts or ends at the edge puts the edge at zero.
+fn edge_force_n(before: f32, after: f32) -> f32 {
+    if before > 0.0 && after > 0.0 {
+        0.5 * (before + after)
+    } else {
+        0.0
+    }
+}
+
+/// A [`ContactForce`] taken one base step at a time, as the stator's normal motion makes it
+/// (`crate::normal_motion`): only the first and the last base step's sub-steps are held.
+pub struct ForceBuilder {
+    force: ContactForce,
+    first: [f32; FINE],
+    last: [f32; FINE],
+    pushed: usize,
+    error: Option<ForceError>,
+}
+
+impl Default for ForceBuilder {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl ForceBuilder {
+    pub fn new() -> Self {
+        ForceBuilder {
+            force: ContactForce {
+                edge_n: [0.0; BASE_STEPS + 1],
+                event_at: [u8::MAX; BASE_STEPS],
+                events: Vec::new(),
+            },
+            first: [0.0; FINE],
+            last: [0.0; FINE],
+            pushed: 0,
+            error: None,
+        }
+    }
+
+    /// The next base step's [`FINE`] sub-step means (N). Step k is classified once step k + 1
+    /// has fixed its closing edge; step 0 waits for the period's end, which fixes its opening one.
+    pub fn push(&mut self, sub: [f32; FINE]) {
+        let k = self.pushed;
+        if k >= BASE_STEPS {
+            self.error = Some(ForceError::Incomplete);
+            return;
+        }
+        if k == 0 {
+            self.first = sub;
+        } else {
+            if let Some(e) = self.force.edge_n.get_mut(k) {
+                *e = edge_force_n(self.last[FINE - 1], sub[0]);
+            }
+            if k > 1 {
+                let last = self.last;
+                self.note(k - 1, &last);
+            }
+        }
+        self.last = sub;
+        self.pushed += 1;
+    }
+
+    fn note(&mut self, k: usize, sub: &[f32; FINE]) {
+        if let Err(e) = self.force.classify(k, sub) {
+            self.error.get_or_insert(e);
+        }
+    }
+
+    /// The force, once all [`BASE_STEPS`] steps are in.
+    pub fn finish(mut self) -> Result<ContactForce, ForceError> {
+        if self.pushed != BASE_STEPS {
+            return Err(ForceError::Incomplete);
+        }
+        // The period closes on itself: edge 0 is edge BASE_STEPS.
+        let wrap = edge_force_n(self.last[FINE - 1], self.first[0]);
+        self.force.edge_n[0] = wrap;
+        self.force.edge_n[BASE_STEPS] = wrap;
+        let (first, last) = (self.first, self.last);
+        self.note(BASE_STEPS - 1, &last);
+        self.note(0, &first);
+        match self.error {
+            Some(e) => Err(e),
+            None => Ok(self.force),
+        }
+    }
 }
 
 impl ContactForce {
@@ -53,27 +144,25 @@ impl ContactForce {
     /// φ = −π): the edges from the means either side, and the sub-steps kept where a straight
     /// line does not carry them.
     pub fn from_fine(fine_n: impl Fn(usize) -> f32) -> Result<Self, ForceError> {
-        let n = BASE_STEPS * FINE;
-        let mut edge_n = [0.0f32; BASE_STEPS + 1];
-        for (k, e) in edge_n.iter_mut().enumerate() {
-            let (before, after) = (fine_n((k * FINE + n - 1) % n), fine_n((k * FINE) % n));
-            // A contact that starts or ends at the edge: the side that presses is the edge.
-            *e = if before > 0.0 && after > 0.0 { 0.5 * (before + after) } else { 0.0 };
-        }
-        let mut force = ContactForce { edge_n, event_at: [u8::MAX; BASE_STEPS], events: Vec::new() };
+        let mut builder = ForceBuilder::new();
         for k in 0..BASE_STEPS {
-            let sub: [f32; FINE] = core::array::from_fn(|i| fine_n(k * FINE + i));
-            let off_line =
-                sub.iter().enumerate().any(|(i, f)| (force.line_mean(k, i, 1) - f).abs() > LINE_TOLERANCE_N);
-            if off_line {
-                let index = force.events.len() as u8;
-                force.events.push(sub).map_err(|_| ForceError::TooManyEvents)?;
-                if let Some(slot) = force.event_at.get_mut(k) {
-                    *slot = index;
-                }
+            builder.push(core::array::from_fn(|i| fine_n(k * FINE + i)));
+        }
+        builder.finish()
+    }
+
+    /// Keeps base step k on its sub-steps where the straight line between its edges misses one.
+    fn classify(&mut self, k: usize, sub: &[f32; FINE]) -> Result<(), ForceError> {
+        let off_line =
+            sub.iter().enumerate().any(|(i, f)| (self.line_mean(k, i, 1) - f).abs() > LINE_TOLERANCE_N);
+        if off_line {
+            let index = self.events.len() as u8;
+            self.events.push(*sub).map_err(|_| ForceError::TooManyEvents)?;
+            if let Some(slot) = self.event_at.get_mut(k) {
+                *slot = index;
             }
         }
-        Ok(force)
+        Ok(())
     }
 
     /// The force at the start and the end of base step k.
@@ -113,6 +202,11 @@ impl ContactForce {
                 (self.line_mean(k, first, len), change <= SPLIT_FORCE_N)
             }
         }
+    }
+
+    /// Mean force over the period (N).
+    pub fn mean_n(&self) -> f32 {
+        (0..BASE_STEPS).map(|k| self.run(k, 0, FINE).0).sum::<f32>() / BASE_STEPS as f32
     }
 
     /// Base steps kept on their sub-steps.

@@ -5,8 +5,8 @@
 //! - [`sensors`]: encoder unwrapping, preload force cell;
 //! - [`model`]: fixed-point steady-state thrust model and its inverse (the feedforward);
 //! - [`inertia`]: the same model for a carriage whose speed ripples within a period (f32);
-//! - [`contact_orbit`]: the carriage's orbit under the stator's own contact force (f32; not yet
-//!   fed on the board: its normal motion is still to be ported, issue 28);
+//! - [`normal_motion`], [`contact_orbit`]: the stator's normal motion and the carriage's orbit
+//!   under its contact force (f32, issue 28; not yet in the board's table build);
 //! - [`profile`]: online trapezoidal motion profile;
 //! - [`controller`]: state machine, position control, supervision; one entry point `step`;
 //! - [`settings`]: every controller setting declared once (id, unit, range, default, storage);
@@ -29,6 +29,7 @@ pub mod hardware;
 pub mod inertia;
 pub mod model;
 pub mod motor_table;
+pub mod normal_motion;
 pub mod param_store;
 pub mod pil_wire;
 pub mod profile;

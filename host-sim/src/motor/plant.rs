@@ -60,6 +60,17 @@ impl Transition {
     }
 }
 
+/// The stator's structural dashpots (N·s/m): the stack's between foot and counterweight and the
+/// preload spring's. Each spring gets the dashpot of its own mode's damping ratio (the preload
+/// spring's may differ: the stator's guide and spring mount).
+pub fn stator_dashpots(p: &Params) -> (f64, f64) {
+    let (m1, m2) = (p.stator.foot_mass_kg, p.stator.counterweight_mass_kg);
+    let (k1, k2) = (p.k1_n_per_m(), p.stator.preload_spring_n_per_m);
+    let c1 = 2.0 * p.stator.damping_ratio * (k1 * m1 * m2 / (m1 + m2)).sqrt();
+    let c2 = 2.0 * p.stator.preload_mode_damping_ratio() * (k2 * (m1 + m2)).sqrt();
+    (c1, c2)
+}
+
 /// Stator normal dynamics (eqs. 4 and 6) as a state matrix over `[y1, v1, y2, v2, drive, anchor]`,
 /// the two inputs augmented as constant states so that `exp(A·h)` gives the exact zero-order-hold
 /// transition. `contact` adds the contact spring and dashpot on the foot.
@@ -68,11 +79,7 @@ pub(crate) fn state_matrix(p: &Params, contact: Option<(f64, f64)>) -> SMatrix<f
     let m2 = p.stator.counterweight_mass_kg;
     let k1 = p.k1_n_per_m();
     let k2 = p.stator.preload_spring_n_per_m;
-    let zeta = p.stator.damping_ratio;
-    // Structural damping: each spring gets the dashpot of its own mode's damping ratio (the
-    // preload spring's may differ: the stator's guide and spring mount).
-    let c1 = 2.0 * zeta * (k1 * m1 * m2 / (m1 + m2)).sqrt();
-    let c2 = 2.0 * p.stator.preload_mode_damping_ratio() * (k2 * (m1 + m2)).sqrt();
+    let (c1, c2) = stator_dashpots(p);
     let (kk, cc) = contact.unwrap_or((0.0, 0.0));
     let mut a = SMatrix::<f64, 6, 6>::zeros();
     a[(0, 1)] = 1.0;

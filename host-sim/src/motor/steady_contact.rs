@@ -52,7 +52,7 @@
 use crate::motor::contact_friction::{FrictionLaw, Layer, Mode, StepInput};
 use crate::motor::effects::Effects;
 use crate::motor::params::{FrictionModel, Params};
-use crate::motor::plant::{contact_spring, friction_law, state_matrix};
+use crate::motor::plant::{contact_spring, friction_law, state_matrix, stator_dashpots};
 use crate::motor::roots::stall_load_n;
 use crate::motor::steady::{amplitudes, OperatingPoint};
 use nalgebra::SMatrix;
@@ -312,6 +312,34 @@ impl ContactProfile {
     pub fn contact_fraction(&self) -> f64 {
         self.contact_n.iter().filter(|f| **f > 0.0).count() as f64 / self.contact_n.len() as f64
     }
+}
+
+/// The core's copy of [`ContactProfile::new`]'s inputs (`piezo_drive::normal_motion`): the
+/// stator and the drive at an operating point, the parameter file's drive gain applied.
+pub fn core_normal_motion(
+    p: &Params,
+    op: OperatingPoint,
+) -> (piezo_drive::normal_motion::Stator, piezo_drive::normal_motion::NormalDrive) {
+    let voltage_v = op.voltage_v * p.effects.drive_gain(op.frequency_hz);
+    let amp = amplitudes(p, voltage_v, op.frequency_hz);
+    let (kc, c3) = contact_spring(p, op.preload_n);
+    let (c1, c2) = stator_dashpots(p);
+    let stator = piezo_drive::normal_motion::Stator {
+        foot_mass_kg: p.stator.foot_mass_kg as f32,
+        counterweight_mass_kg: p.stator.counterweight_mass_kg as f32,
+        stack_n_per_m: p.k1_n_per_m() as f32,
+        preload_spring_n_per_m: p.stator.preload_spring_n_per_m as f32,
+        stack_damping_n_s_per_m: c1 as f32,
+        preload_damping_n_s_per_m: c2 as f32,
+        contact_n_per_m: kc as f32,
+        contact_damping_n_s_per_m: c3 as f32,
+    };
+    let drive = piezo_drive::normal_motion::NormalDrive {
+        frequency_hz: op.frequency_hz as f32,
+        normal_force_n: amp.normal_force_n as f32,
+        preload_n: op.preload_n as f32,
+    };
+    (stator, drive)
 }
 
 /// A repeating pattern's impulses: their mean over the pattern as one period where its periods

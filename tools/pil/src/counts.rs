@@ -366,26 +366,59 @@ fn acos_against_micromath(k: f32) {
     hprintln!("  largest difference from acos_f32: micromath {} rad, trig::acos {} rad", worst_mm, worst_fx);
 }
 
-/// The contact model's carriage orbit (`contact_orbit`, not yet in the table build: issue 28
-/// item 3) on a contact force shaped like the sourced 1 kg carriage's at 16 N and 2.2 kHz: eq.
-/// (15)'s arc about the preload and a 3 µs landing impact, the default carriage's friction layer.
-/// One orbit solve (several periods) at no load and against 2 N.
+/// The contact model in the core (`normal_motion` and `contact_orbit`, not yet in the table
+/// build: issue 28 item 3) on the sourced prototype's stator (`params/prototype-sourced.toml` via
+/// host-sim's `core_normal_motion`, 100 V): the stator's normal motion from rest to its settled
+/// contact force at three operating points, then the 1 kg carriage's orbits on the 16 N, 2.2 kHz
+/// force: one solve at no load and against 2 N, and a 17-load table hinted load to load.
 fn contact_orbit(k: f32) {
-    use piezo_drive::contact_orbit::{Carriage, ContactForce, Orbits, BASE_STEPS, FINE};
-    let sub_steps = (BASE_STEPS * FINE) as i32;
-    let force = ContactForce::from_fine(|j| {
-        // φ from −π: cos φ = −cos(j·2π/4096); the arc presses where 16 + 18·cos φ > 0.
-        let turn = Fx::from_num(core::f32::consts::TAU) * (j as i32) / sub_steps;
-        let arc = 16.0 - 18.0 * piezo_drive::trig::cos(turn).to_num::<f32>();
-        let landing = (1300..1306).contains(&j);
-        if landing {
-            120.0
-        } else {
-            arc.max(0.0)
+    use piezo_drive::contact_orbit::{Carriage, Orbits};
+    use piezo_drive::normal_motion::{NormalDrive, NormalMotion, Stator};
+    let stator = Stator {
+        foot_mass_kg: 0.06,
+        counterweight_mass_kg: 1.0,
+        stack_n_per_m: 2.7e7,
+        preload_spring_n_per_m: 2e6,
+        stack_damping_n_s_per_m: 123.6245,
+        preload_damping_n_s_per_m: 1456.022,
+        contact_n_per_m: 2e9,
+        contact_damping_n_s_per_m: 3962.407,
+    };
+    let mut working = None;
+    for (preload_n, frequency_hz, normal_force_n) in
+        [(16.0f32, 2200.0f32, 15.943_133f32), (16.0, 1500.0, 15.985_793), (5.0, 2200.0, 15.943_133)]
+    {
+        let drive = NormalDrive { frequency_hz, normal_force_n, preload_n };
+        let mut motion = None;
+        let new = counts(|| motion = Some(NormalMotion::new(core::hint::black_box(&stator), &drive)));
+        let Some(Ok(motion)) = motion else {
+            hprintln!("normal motion at {} N, {} Hz: refused", preload_n, frequency_hz);
+            continue;
+        };
+        let mut profile = None;
+        let settle = counts(|| profile = Some(core::hint::black_box(&motion).settle()));
+        match profile {
+            Some(Ok(p)) => {
+                hprintln!(
+                    "normal motion, {} N, {} Hz: transitions {} instructions, settle {} ({} periods, pattern {}, {} per period), {} event steps, mean {} N",
+                    preload_n,
+                    frequency_hz,
+                    (new as f32 * k) as u32,
+                    (settle as f32 * k) as u32,
+                    p.periods,
+                    p.pattern,
+                    (settle as f32 * k / f32::from(p.periods.max(1))) as u32,
+                    p.force.events(),
+                    p.force.mean_n()
+                );
+                if working.is_none() {
+                    working = Some(p.force);
+                }
+            }
+            other => hprintln!("normal motion at {} N, {} Hz: {:?}", preload_n, frequency_hz, other.map(|r| r.err())),
         }
-    });
-    let Ok(force) = force else {
-        hprintln!("contact orbit: the force did not fit");
+    }
+    let Some(force) = working else {
         return;
     };
     let carriage = Carriage {
