@@ -1,8 +1,9 @@
 //! The carriage's periodic motion under the stator's own contact force, in the core (f32): the
 //! copy of host-sim's `steady_contact` orbit (`ContactModel::period` and its search), issue 28
-//! item 3. The contact force comes in as a [`ContactForce`]; the core's copy of the stator's
-//! normal motion, which would make it on the board, is not written yet, so nothing in the
-//! firmware calls this module today (host-sim's tests feed it the f64 model's force).
+//! item 3. The contact force comes in as a [`ContactForce`], made by the core's copy of the
+//! stator's normal motion ([`crate::normal_motion`]) or, in host-sim's tests, from the f64
+//! model's. Nothing in the firmware calls either yet: one operating point costs the M4 several
+//! times the table build's budget (docs/simulator.md).
 //!
 //! The carriage takes [`BASE_STEPS`] steps per period, each halved (down to 1/[`FINE`] of it)
 //! where the contact starts, ends or changes by more than [`SPLIT_FORCE_N`] within it, and while

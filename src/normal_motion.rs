@@ -249,6 +249,22 @@ impl NormalMotion {
         self.advance(z, lvl + 1) + self.advance(z, lvl + 1)
     }
 
+    /// [`Self::advance`] without the impulse, for the periods before the motion repeats: one
+    /// transition where the contact state holds over the step, else its two halves.
+    fn advance_state(&self, z: &mut V7, lvl: usize) {
+        let contact = self.pressing(z);
+        let Some(t) = self.t.get(usize::from(contact)).and_then(|levels| levels.get(lvl)) else {
+            return;
+        };
+        let next = apply(t, z);
+        if self.pressing(&next) == contact || lvl >= LEVELS {
+            *z = next;
+            return;
+        }
+        self.advance_state(z, lvl + 1);
+        self.advance_state(z, lvl + 1);
+    }
+
     /// [`Self::advance`] over one base step as [`FINE`] sub-steps: each one's mean force (N).
     fn fine_step(&self, z: &mut V7) -> [f32; FINE] {
         core::array::from_fn(|_| self.advance(z, FINE_LEVEL) * FINE as f32)
@@ -277,7 +293,7 @@ impl NormalMotion {
                 let amplitude = (step_count / self.ramp_steps).min(1.0);
                 z[4] = amplitude * c;
                 z[5] = amplitude * s;
-                self.advance(&mut z, 0);
+                self.advance_state(&mut z, 0);
             }
             let now = [z[0], z[1], z[2], z[3]];
             if starts.is_full() {
