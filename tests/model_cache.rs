@@ -116,3 +116,36 @@ fn past_the_models_stall_force_the_frequency_in_use_stays() {
     assert_eq!(stuck.frequency_hz, c.frequency_hz[3], "against {beyond} N");
     assert_eq!(stuck.per_volt, c.per_volt[3]);
 }
+
+#[test]
+fn a_table_from_the_constant_speed_models_own_speed_law_is_the_cores_table() {
+    // `ModelTable::from_speed_law` takes the carriage's speed from another model (host-sim feeds
+    // it the contact model). Fed the constant-speed model's own speed law (eq. 19's root), it
+    // must give back the core's table for a carriage heavy enough that the core builds from
+    // that same model: each grid column's thrust, taken as a load, returns its own speed.
+    let ctl = controller_at(WORD_16_N);
+    let heavy = piezo_drive::controller::model_cache::ModelRequest {
+        moving_mass_kg: 50.0,
+        ..ctl.model_request().expect("a request once the preload is read")
+    };
+    let core = ModelTable::build(&heavy);
+    let preload = piezo_drive::fastmath::fx_from_f32(heavy.preload_n);
+    let law = ModelTable::from_speed_law(&heavy, |volts, load_n| {
+        let point = heavy.per_volt.point(preload, piezo_drive::fastmath::fx_from_f32(volts));
+        Some(point.speed_at_load_mm_s(piezo_drive::fastmath::fx_from_f32(load_n)).to_num())
+    });
+    let stall = core.stall_n();
+    assert!((law.stall_n() - stall).abs() < 0.01 * stall, "stall {} against {stall}", law.stall_n());
+    let v0 = core.no_load_mm_s();
+    assert!((law.no_load_mm_s() - v0).abs() < 0.01 * v0, "no-load {} against {v0}", law.no_load_mm_s());
+    // Where the thrust falls with the speed (between standstill and the foot's peak speed, where
+    // the speed law is one-to-one), at part and full drive.
+    let mut worst = 0.0f32;
+    for volts in [40.0f32, 70.0, 100.0] {
+        for share in [0.1f32, 0.3, 0.5, 0.7, 0.9] {
+            let speed = share * core.speed_at_load_mm_s(0.0) * volts / 100.0;
+            worst = worst.max((law.thrust_n(volts, speed) - core.thrust_n(volts, speed)).abs());
+        }
+    }
+    assert!(worst < 0.01 * stall, "thrust off by {worst} N of a {stall} N stall force");
+}

@@ -6,7 +6,8 @@ use anyhow::{bail, Result};
 use clap::Parser;
 use cli::gap::GapArgs;
 use cli::pil::PilArgs;
-use cli::{Cli, Command, FrictionArg, PointArgs};
+use cli::{Cli, Command, FrictionArg, PointArgs, TableModelArg};
+use host_sim::harness::contact_table::TableModel;
 use host_sim::harness::moves;
 use host_sim::motor::params::Params;
 use host_sim::motor::steady::{OperatingPoint, ThrustModel};
@@ -115,7 +116,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Characterize(args) => host_sim::virtual_controller::characterize::run(&args.into()),
         Command::Calibrate(args) => host_sim::virtual_controller::calibrate::run(&params, &args.into()),
         Command::Moves(args) => host_sim::virtual_controller::gcs_moves::run(&args.into()),
-        Command::Sweep { json, preload_n } => cmd_sweep(&params, json, preload_n),
+        Command::Sweep { json, preload_n, model } => cmd_sweep(&params, json, preload_n, model),
         Command::Demo { plot: plot_path } => cmd_demo(&params, plot_path),
         Command::Serve(args) => host_sim::virtual_controller::serve::run(&params, &args.into()),
         Command::ReadmeFigures(args) => host_sim::readme_figures::run(&args.into()),
@@ -498,13 +499,17 @@ fn cmd_gap(params: &Params, args: GapArgs) -> Result<()> {
 }
 
 /// `host-sim sweep`: the move sweep over slider masses and loads.
-fn cmd_sweep(params: &Params, json: bool, preload_n: f64) -> Result<()> {
+fn cmd_sweep(params: &Params, json: bool, preload_n: f64, model: TableModelArg) -> Result<()> {
     anyhow::ensure!(
         preload_n.is_finite() && preload_n > 0.0,
         "--preload-n must be a positive number of newtons, got {preload_n}"
     );
     let show = check::show_progress();
-    let rows = host_sim::harness::sweep::run(params, preload_n, |done, total| {
+    let table_model = match model {
+        TableModelArg::Core => TableModel::Core,
+        TableModelArg::Contact => TableModel::Contact(Box::new(params.clone())),
+    };
+    let rows = host_sim::harness::sweep::run(params, preload_n, &table_model, |done, total| {
         if show {
             eprint!("\rsweep: {done}/{total} moves");
         }

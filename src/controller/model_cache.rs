@@ -29,7 +29,7 @@ pub use super::frequency_choice::{FrequencyChoice, FREQ_CANDIDATES};
 use super::{Controller, ControllerConfig};
 use crate::fastmath::{acos_f32, clamp_f32, fx_from_f32};
 use crate::inertia::Orbits;
-use crate::model::PerVolt;
+use crate::model::{PerVolt, ThrustPoint};
 use crate::trig::cos;
 use crate::Fx;
 
@@ -168,10 +168,20 @@ pub const RIDING_SHARE: f32 = 0.8;
 /// (the mean speed falls as the load rises; between pairs linearly, beyond them along the end
 /// segment).
 fn with_inertia(row: &mut [f32; PHASE_POINTS], orbits: &Orbits, foot_mm_s: f32) {
+    through_speed_law(row, |load| orbits.mean_speed_mm_s(load), foot_mm_s);
+}
+
+/// [`with_inertia`] for any model of the carriage's mean speed against a load on the foot
+/// (mm/s; None where it has none).
+pub(super) fn through_speed_law(
+    row: &mut [f32; PHASE_POINTS],
+    mut speed_at_load: impl FnMut(f32) -> Option<f32>,
+    foot_mm_s: f32,
+) {
     let mut pairs = [(0.0f32, 0.0f32); PHASE_POINTS];
     let mut n = 0;
     for &load in row.iter() {
-        if let (Some(speed), Some(slot)) = (orbits.mean_speed_mm_s(load), pairs.get_mut(n)) {
+        if let (Some(speed), Some(slot)) = (speed_at_load(load), pairs.get_mut(n)) {
             *slot = (speed, load);
             n += 1;
         }
@@ -237,7 +247,7 @@ fn less_guide_friction(row: &mut [f32; PHASE_POINTS], request: &ModelRequest, fo
 pub(super) fn with_guide_friction(
     request: &ModelRequest,
     load_n: f32,
-    speed_at_foot_load: impl Fn(f32) -> f32,
+    mut speed_at_foot_load: impl FnMut(f32) -> f32,
 ) -> f32 {
     let mut v = speed_at_foot_load(load_n + request.rail_coulomb_n);
     if request.rail_viscous_n_s_per_m != 0.0 {
@@ -253,19 +263,49 @@ pub(super) fn thrust_at_zero_speed(row: &[f32; PHASE_POINTS]) -> f32 {
     row.get((PHASE_POINTS - 1) / 2).copied().unwrap_or(0.0)
 }
 
-/// Row `j` of the thrust grid (N) at the request's preload, net of the guide's friction, from
-/// the carriage's periodic motion where it rides the foot.
-pub(super) fn thrust_row(request: &ModelRequest, riding: bool, j: usize) -> [f32; PHASE_POINTS] {
-    let top = request.max_drive_v.max(0.0);
+/// Row `j`'s drive (V) of the thrust grid.
+pub(super) fn row_volts(request: &ModelRequest, j: usize) -> f32 {
+    let step_v = request.max_drive_v.max(0.0) / (VOLT_POINTS - 1) as f32;
+    if j == 0 {
+        ROW0_SHARE * step_v
+    } else {
+        step_v * j as f32
+    }
+}
+
+/// Row `j` of the constant-speed model's thrust grid (N, eqs. 19–22, before the guide's
+/// friction), and its model point.
+pub(super) fn constant_speed_row(request: &ModelRequest, j: usize) -> (ThrustPoint, [f32; PHASE_POINTS]) {
     let preload = fx_from_f32(request.preload_n);
-    let step_v = top / (VOLT_POINTS - 1) as f32;
-    let volts = if j == 0 { ROW0_SHARE * step_v } else { step_v * j as f32 };
-    let point = request.per_volt.point(preload, fx_from_f32(volts));
+    let point = request.per_volt.point(preload, fx_from_f32(row_volts(request, j)));
     let mut row = [0.0f32; PHASE_POINTS];
     for (k, t) in row.iter_mut().enumerate() {
         let phi = Fx::PI * k as i32 / (PHASE_POINTS - 1) as i32;
         *t = point.thrust_n(point.foot_speed_mm_s.saturating_mul(cos(phi))).to_num();
     }
+    (point, row)
+}
+
+/// Row `j` of the grid from a model of the carriage's mean speed at a drive and a load on the
+/// foot, `speed_at(volts, load_n)` (mm/s), net of the guide's friction: as [`thrust_row`] for a
+/// riding carriage, with that model in place of the periodic motion of [`Orbits`].
+pub(super) fn thrust_row_from_law(
+    request: &ModelRequest,
+    j: usize,
+    speed_at: &mut impl FnMut(f32, f32) -> Option<f32>,
+) -> [f32; PHASE_POINTS] {
+    let volts = row_volts(request, j);
+    let (point, mut row) = constant_speed_row(request, j);
+    let foot_mm_s: f32 = point.foot_speed_mm_s.to_num();
+    through_speed_law(&mut row, |load| speed_at(volts, load), foot_mm_s);
+    less_guide_friction(&mut row, request, foot_mm_s);
+    row
+}
+
+/// Row `j` of the thrust grid (N) at the request's preload, net of the guide's friction, from
+/// the carriage's periodic motion where it rides the foot.
+pub(super) fn thrust_row(request: &ModelRequest, riding: bool, j: usize) -> [f32; PHASE_POINTS] {
+    let (point, mut row) = constant_speed_row(request, j);
     if riding {
         let orbits = Orbits::new(&point, request.frequency_hz, request.moving_mass_kg);
         if orbits.inertia_matters() {

@@ -8,8 +8,8 @@
 //! (`tools/pil/run` prints the longest on the M4).
 
 use super::model_cache::{
-    thrust_at_zero_speed, thrust_row, with_guide_friction, ModelRequest, ModelTable, LOAD_POINTS,
-    PHASE_POINTS, RIDING_SHARE, VOLT_POINTS,
+    thrust_at_zero_speed, thrust_row, thrust_row_from_law, with_guide_friction, ModelRequest, ModelTable,
+    LOAD_POINTS, PHASE_POINTS, RIDING_SHARE, VOLT_POINTS,
 };
 use crate::fastmath::fx_from_f32;
 use crate::inertia::Orbits;
@@ -30,6 +30,32 @@ impl ModelTable {
                 return table;
             }
         }
+    }
+}
+
+impl ModelTable {
+    /// The table from another model of the carriage: `speed_at(volts, load_n)`, its mean speed
+    /// (mm/s) at a drive against a load on the foot, None where it has none. The request's
+    /// frequency is taken as it is (build one with [`ModelTable::build`] first to have it
+    /// chosen). Every row of the grid goes through that model as a riding carriage's rows go
+    /// through its periodic motion, the stall force is the top row's thrust at zero speed and
+    /// the speed table comes from the model at full drive. For hosts: the contact model that
+    /// host-sim feeds it costs the Cortex-M4 far more than a table build may (docs/simulator.md).
+    pub fn from_speed_law(request: &ModelRequest, mut speed_at: impl FnMut(f32, f32) -> Option<f32>) -> Self {
+        let mut thrust_n = [[0.0f32; PHASE_POINTS]; VOLT_POINTS];
+        let mut largest = 0.0f32;
+        for (j, slot) in thrust_n.iter_mut().enumerate() {
+            *slot = thrust_row_from_law(request, j, &mut speed_at);
+            largest = slot.iter().fold(largest, |a, &t| a.max(t.abs()));
+        }
+        let top_row = thrust_n.last().copied().unwrap_or([0.0; PHASE_POINTS]);
+        let stall_n = thrust_at_zero_speed(&top_row).max(0.0);
+        let top_v = request.max_drive_v.max(0.0);
+        let speed_mm_s = core::array::from_fn(|k| {
+            let load = stall_n * k as f32 / (LOAD_POINTS - 1) as f32;
+            with_guide_friction(request, load, |foot_load| speed_at(top_v, foot_load).unwrap_or(0.0).max(0.0))
+        });
+        ModelTable::assemble(request, &thrust_n, largest, stall_n, speed_mm_s)
     }
 }
 

@@ -136,6 +136,11 @@ pub enum Command {
         /// Preload of every case (N); the controller refuses one outside its window.
         #[arg(long, default_value_t = host_sim::harness::sweep::DEFAULT_PRELOAD_N)]
         preload_n: f64,
+        /// The controller's model table: `core` (its own build, as on the board) or `contact`
+        /// (host-sim's contact model of each carriage: what a model that is the motor gives the
+        /// controller; too costly for the board, and slow).
+        #[arg(long, value_enum, default_value_t = TableModelArg::Core)]
+        model: TableModelArg,
     },
     /// Processor in the loop: one closed-loop move with the control core running on an emulated
     /// Cortex-M4F (QEMU) against the plant; instruction counts per tick and per state, and every
@@ -207,6 +212,16 @@ impl PointArgs {
         check::direction("--direction", i64::from(self.direction))?;
         Ok(op)
     }
+}
+
+/// `sweep --model`: where the controller's model table comes from
+/// ([`host_sim::harness::contact_table::TableModel`], whose contact variant carries a file).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum TableModelArg {
+    /// The core's own build, as on the board.
+    Core,
+    /// Host-sim's contact model of each carriage.
+    Contact,
 }
 
 /// `--friction`: the friction law of the time-domain plant ([`FrictionModel`], which has no clap

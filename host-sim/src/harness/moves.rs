@@ -1,6 +1,7 @@
 //! Closed-loop moves in the loop: one move (`host-sim move`) and the scripted demo.
 
 use crate::check::ser;
+use crate::harness::contact_table::TableModel;
 use crate::harness::sil::{controller_config, Sil};
 use crate::motor::params::Params;
 use crate::motor::plant::ExternalLoad;
@@ -65,7 +66,17 @@ pub struct TracePoint {
 
 /// A simulated board at rest with servo on, preload settled.
 pub fn ready_board(p: &Params, cfg: ControllerConfig, preload_n: f64) -> anyhow::Result<Sil> {
-    try_ready_board(p, cfg, preload_n)?
+    ready_board_with(p, cfg, preload_n, TableModel::Core)
+}
+
+/// [`ready_board`] whose controller takes its model tables from `table_model` from the start.
+pub fn ready_board_with(
+    p: &Params,
+    cfg: ControllerConfig,
+    preload_n: f64,
+    table_model: TableModel,
+) -> anyhow::Result<Sil> {
+    try_ready_board_with(p, cfg, preload_n, table_model)?
         .map_err(|(e, _)| anyhow::anyhow!("servo on refused: {}", command_error_text(e)))
 }
 
@@ -77,7 +88,18 @@ pub fn try_ready_board(
     cfg: ControllerConfig,
     preload_n: f64,
 ) -> anyhow::Result<Result<Sil, (piezo_drive::controller::CommandError, Box<Sil>)>> {
+    try_ready_board_with(p, cfg, preload_n, TableModel::Core)
+}
+
+#[allow(clippy::type_complexity)]
+fn try_ready_board_with(
+    p: &Params,
+    cfg: ControllerConfig,
+    preload_n: f64,
+    table_model: TableModel,
+) -> anyhow::Result<Result<Sil, (piezo_drive::controller::CommandError, Box<Sil>)>> {
     let mut sil = Sil::new(p, cfg, preload_n, 7)?;
+    sil.table_model = table_model;
     // Let the force-cell filter settle before the servo is switched on.
     sil.run_until(0.05, |_| false);
     Ok(match sil.controller.set_servo(true) {

@@ -2,6 +2,7 @@
 //! board gives it — 12-bit DAC words through a zero-order hold and the amplifier, encoder counts
 //! wrapped to 16 bits, preload ADC words — with a one-period output delay.
 
+use crate::harness::contact_table::{contact_table, TableModel};
 use crate::motor::params::Params;
 use crate::motor::plant::{ExternalLoad, Plant};
 use crate::motor::steady::amplitudes;
@@ -145,6 +146,8 @@ pub struct Sil {
     last_slider_m: f64,
     /// Wall-clock time of the last controller step (ns).
     pub last_step_ns: u64,
+    /// Where the controller's model table comes from (the core's own build unless told).
+    pub table_model: TableModel,
 }
 
 impl Sil {
@@ -168,6 +171,7 @@ impl Sil {
             limits_m: None,
             last_slider_m: 0.0,
             last_step_ns: 0,
+            table_model: TableModel::Core,
         })
     }
 
@@ -202,7 +206,14 @@ impl Sil {
         let out = self.controller.step(&inputs);
         self.last_step_ns = u64::try_from(t0.elapsed().as_nanos()).unwrap_or(u64::MAX);
         // The board's lower-rate task (the model table), done here between periods.
-        self.controller.background();
+        match &self.table_model {
+            TableModel::Core => self.controller.background(),
+            TableModel::Contact(p) => {
+                if let Some(r) = self.controller.model_request() {
+                    self.controller.install_model(contact_table(p, &r));
+                }
+            }
+        }
         let applied = std::mem::replace(&mut self.pending, out);
         self.apply(&applied);
         out

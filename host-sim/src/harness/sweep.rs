@@ -9,7 +9,8 @@
 //! load of the "70 % of stall" move: 70 % of the highest stall force the plant has over the same
 //! band ([`plant_stall_n`]).
 
-use crate::harness::moves::{ready_board, run_move, MoveResult};
+use crate::harness::contact_table::TableModel;
+use crate::harness::moves::{ready_board_with, run_move, MoveResult};
 use crate::harness::sil::controller_config;
 use crate::motor::params::Params;
 use crate::motor::plant::{steady_speed_m_s, ExternalLoad};
@@ -127,21 +128,29 @@ pub fn plant_stall_n(p: &Params, preload_n: f64) -> (f64, f64) {
     })
 }
 
-fn one(
-    p: &Params,
-    preload_n: f64,
+/// One move of the sweep: target, opposing load, whether the controller is told the load,
+/// feedforward on, and the plant's limit for it (s).
+struct Case {
     to_um: f64,
     load_n: f64,
     known: bool,
     feedforward: bool,
     limit_s: Option<f64>,
-) -> anyhow::Result<MoveResult> {
+}
+
+fn one(p: &Params, preload_n: f64, case: Case, table_model: &TableModel) -> anyhow::Result<MoveResult> {
+    let Case { to_um, load_n, known, feedforward, limit_s } = case;
     let mut cfg = controller_config(p);
     cfg.feedforward = feedforward;
     if known {
         cfg.expected_load_n = load_n as f32;
     }
-    let mut sil = ready_board(p, cfg, preload_n)?;
+    // The contact model of the case's own carriage (the sweep's controller is told its mass).
+    let table_model = match table_model {
+        TableModel::Core => TableModel::Core,
+        TableModel::Contact(_) => TableModel::Contact(Box::new(p.clone())),
+    };
+    let mut sil = ready_board_with(p, cfg, preload_n, table_model)?;
     sil.set_load(ExternalLoad::opposing(load_n, 1));
     // Time enough for a plant that a load slows to a crawl (0.1 kg at 18 N against 0.5 N makes
     // 0.12 mm/s: 8.5 s for 1 mm).
@@ -150,9 +159,12 @@ fn one(
 }
 
 /// Runs every move on every plant at `preload_n` (in parallel); `progress(done, total)` after each.
+/// `table_model`: where the controller's model table comes from (any `Contact` file stands for
+/// each case's own).
 pub fn run(
     p: &Params,
     preload_n: f64,
+    table_model: &TableModel,
     progress: impl Fn(usize, usize) + Sync,
 ) -> anyhow::Result<Vec<SweepRow>> {
     let mut masses = vec![p.slider.mass_kg];
@@ -185,7 +197,8 @@ pub fn run(
             } else {
                 loaded_limit_s(&q, to_um * 1e-6, preload_n, load_n, stalls[i])
             };
-            let r = one(&q, preload_n, to_um, load_n, known, ff, limit_s)?;
+            let case = Case { to_um, load_n, known, feedforward: ff, limit_s };
+            let r = one(&q, preload_n, case, table_model)?;
             progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1, total);
             let limit_ratio = limit_s.filter(|_| to_um == 1000.0).zip(r.settle_time_s).map(|(l, t)| t / l);
             Ok(SweepRow {
