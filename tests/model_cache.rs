@@ -149,3 +149,17 @@ fn a_table_from_the_constant_speed_models_own_speed_law_is_the_cores_table() {
     }
     assert!(worst < 0.01 * stall, "thrust off by {worst} N of a {stall} N stall force");
 }
+
+#[test]
+fn a_choice_by_another_model_takes_that_models_fastest_candidate() {
+    // `ModelRequest::chosen_with`: the candidate where the given speed law is highest, its
+    // choice then fixed; where no candidate moves, the request's own frequency stays.
+    let request = controller_at(WORD_16_N).model_request().expect("a request once the preload is read");
+    assert!(request.choice.len > 1, "the default configuration offers a choice");
+    let lowest = request.choice.frequency_hz[request.choice.len - 1];
+    let slow_high = request.chosen_with(|c| 3.0 - c.frequency_hz / 1000.0);
+    assert_eq!(slow_high.frequency_hz, lowest);
+    assert_eq!(slow_high.choice.len, 1);
+    let none = request.chosen_with(|_| 0.0);
+    assert_eq!(none.frequency_hz, request.frequency_hz);
+}

@@ -23,7 +23,7 @@ fn the_contact_tables_full_drive_speed_is_the_plants() {
                 sil.controller.model_request()
             })
             .expect("a request once the preload is read");
-        let table = contact_table(&p, &request);
+        let table = contact_table(&p, &request, request.preload_n);
         let r = table.request();
         let plant_mm_s = steady_speed_m_s(
             &p,

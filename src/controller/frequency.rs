@@ -53,6 +53,26 @@ impl ModelRequest {
         }
     }
 
+    /// [`Self::chosen`] by another model of the carriage: `speed_at(candidate)`, the speed
+    /// (mm/s) at full drive against the choice's load at the candidate request's frequency (net
+    /// of the guide's friction, as the candidate's own model would give it). For hosts that
+    /// build tables from another model ([`ModelTable::from_speed_law`]).
+    pub fn chosen_with(&self, mut speed_at: impl FnMut(&ModelRequest) -> f32) -> ModelRequest {
+        if self.choice.len <= 1 {
+            return *self;
+        }
+        let c = &self.choice;
+        let mut best = (0.0, *self);
+        for (&f, pv) in c.frequency_hz.iter().zip(&c.per_volt).take(c.len) {
+            let candidate = ModelRequest { per_volt: *pv, frequency_hz: f, ..*self };
+            let speed = speed_at(&candidate);
+            if speed > best.0 {
+                best = (speed, candidate);
+            }
+        }
+        self.with_choice_made(best)
+    }
+
     /// The request the choice's `best` makes (itself without a choice), its choice fixed there.
     pub(super) fn with_choice_made(&self, best: (f32, ModelRequest)) -> ModelRequest {
         if self.choice.len <= 1 {

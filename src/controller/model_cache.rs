@@ -244,7 +244,7 @@ fn less_guide_friction(row: &mut [f32; PHASE_POINTS], request: &ModelRequest, fo
 /// `speed_at_foot_load` (the speed against a load on the foot alone): the viscous part depends
 /// on the speed, so three passes (its share of the thrust is small; each pass shrinks the
 /// error by that share).
-pub(super) fn with_guide_friction(
+pub fn with_guide_friction(
     request: &ModelRequest,
     load_n: f32,
     mut speed_at_foot_load: impl FnMut(f32) -> f32,

@@ -7,7 +7,7 @@
 use crate::motor::params::Params;
 use crate::motor::steady::OperatingPoint;
 use crate::motor::steady_contact::{ContactModel, OrbitStart};
-use piezo_drive::controller::model_cache::{ModelRequest, ModelTable};
+use piezo_drive::controller::model_cache::{with_guide_friction, ModelRequest, ModelTable};
 
 /// Where the controller's model table comes from in a loop harness.
 #[derive(Debug, Clone, Default)]
@@ -20,26 +20,37 @@ pub enum TableModel {
     Contact(Box<Params>),
 }
 
-/// The table for `request` from the contact model of `p`: the frequency chosen as the core
-/// chooses it, then every row of the grid and the speed table from the contact model's orbits
-/// (each load's search started from the last one's orbit at the same drive).
-pub fn contact_table(p: &Params, request: &ModelRequest) -> ModelTable {
-    let chosen = *ModelTable::build(request).request();
+/// The table for `request` from the contact model of `p` at the static preload `static_n` (N):
+/// the frequency chosen where the contact model runs fastest at full drive against the choice's
+/// load, then every row of the grid and the speed table from the contact model's orbits (each
+/// load's search started from the last one's orbit at the same drive). The request's own preload
+/// is the force cell's reading, which under drive is the mean contact force, not the static
+/// preload the model takes (see `harness::sil`).
+pub fn contact_table(p: &Params, request: &ModelRequest, static_n: f32) -> ModelTable {
     let mut told = p.clone();
-    told.slider.mass_kg = f64::from(chosen.moving_mass_kg);
+    told.slider.mass_kg = f64::from(request.moving_mass_kg);
     // The table takes the guide's friction off by itself (the request's rail friction).
     told.effects.rail_friction = None;
+    let model_at = |volts: f32, frequency_hz: f32| {
+        let op = OperatingPoint {
+            preload_n: f64::from(static_n),
+            voltage_v: f64::from(volts),
+            frequency_hz: f64::from(frequency_hz),
+        };
+        ContactModel::new(&told, op)
+    };
+    let chosen = request.chosen_with(|candidate| {
+        let model = model_at(candidate.max_drive_v, candidate.frequency_hz);
+        with_guide_friction(candidate, candidate.choice.load_n.max(0.0), |foot_load| {
+            model.speed_at_load_m_s(f64::from(foot_load)).map_or(0.0, |v| (v * 1e3) as f32)
+        })
+    });
     let mut models: Vec<(f32, ContactModel, Option<OrbitStart>)> = Vec::new();
     ModelTable::from_speed_law(&chosen, |volts, load_n| {
         let i = match models.iter().position(|m| m.0 == volts) {
             Some(i) => i,
             None => {
-                let op = OperatingPoint {
-                    preload_n: f64::from(chosen.preload_n),
-                    voltage_v: f64::from(volts),
-                    frequency_hz: f64::from(chosen.frequency_hz),
-                };
-                models.push((volts, ContactModel::new(&told, op), None));
+                models.push((volts, model_at(volts, chosen.frequency_hz), None));
                 models.len() - 1
             }
         };

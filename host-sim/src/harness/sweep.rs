@@ -58,6 +58,11 @@ pub struct SweepRow {
     pub fault: Option<String>,
 }
 
+/// The lowest drive frequency of `--model contact` (Hz): the contact model holds the plant's
+/// no-load speed within 2.7 % from here (docs/simulator.md), where the core's constant-speed
+/// model stops at the motor table's `lowest_model_freq_hz` (1.2 kHz on the prototype).
+pub const CONTACT_LOWEST_HZ: f32 = 700.0;
+
 /// The preload the sweep runs at unless told otherwise (N).
 pub const DEFAULT_PRELOAD_N: f64 = 16.0;
 
@@ -145,10 +150,14 @@ fn one(p: &Params, preload_n: f64, case: Case, table_model: &TableModel) -> anyh
     if known {
         cfg.expected_load_n = load_n as f32;
     }
-    // The contact model of the case's own carriage (the sweep's controller is told its mass).
+    // The contact model of the case's own carriage (the sweep's controller is told its mass),
+    // and the band where it holds (docs/simulator.md) for the frequency to be chosen from.
     let table_model = match table_model {
         TableModel::Core => TableModel::Core,
-        TableModel::Contact(_) => TableModel::Contact(Box::new(p.clone())),
+        TableModel::Contact(_) => {
+            cfg.drive_freq_min_hz = CONTACT_LOWEST_HZ;
+            TableModel::Contact(Box::new(p.clone()))
+        }
     };
     let mut sil = ready_board_with(p, cfg, preload_n, table_model)?;
     sil.set_load(ExternalLoad::opposing(load_n, 1));
