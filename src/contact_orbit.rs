@@ -478,6 +478,28 @@ mod tests {
     }
 
     #[test]
+    fn a_force_taken_step_by_step_needs_exactly_one_period() {
+        // The normal motion streams a period's base steps into the builder: one short or one
+        // over is an error, not a force with a hole or a wrapped step.
+        let mut short = ForceBuilder::new();
+        for _ in 1..BASE_STEPS {
+            short.push([10.0; FINE]);
+        }
+        assert_eq!(short.finish().err(), Some(ForceError::Incomplete));
+        let mut over = ForceBuilder::new();
+        for _ in 0..=BASE_STEPS {
+            over.push([10.0; FINE]);
+        }
+        assert_eq!(over.finish().err(), Some(ForceError::Incomplete));
+        let mut whole = ForceBuilder::new();
+        for _ in 0..BASE_STEPS {
+            whole.push([10.0; FINE]);
+        }
+        let mean = whole.finish().map(|f| f.mean_n());
+        assert!(mean.is_ok_and(|m| (m - 10.0).abs() < 1e-4), "{mean:?}");
+    }
+
+    #[test]
     fn a_straight_force_is_carried_by_its_edges_and_its_runs_mean_what_they_hold() {
         // A force rising and falling linearly over the period (a tent, periodic): no events, and
         // the mean of any run is the force at its middle (the line's own mean), e.g. base step
