@@ -149,5 +149,15 @@ fn the_cores_hinted_orbits_are_the_cold_ones() {
             assert!(start.slope < 0.0, "the excess falls with the start speed: {start:?}");
             hint = Some(start);
         }
+        // The same 17 loads as one table, each search started from the last two orbits' starts.
+        let loads: [f32; 17] = core::array::from_fn(|k| stall_n * 0.8 * k as f32 / 16.0);
+        for (load_n, along) in loads.iter().zip(core.speeds_along(&loads)) {
+            let cold = core.mean_speed_m_s(*load_n).expect("an orbit from nothing");
+            let along = along.expect("an orbit along the table");
+            assert!(
+                (along - cold).abs() < 1e-3 * no_load.abs(),
+                "{mass_kg} kg {preload_n} N at {load_n} N along the table: {along} against {cold}"
+            );
+        }
     }
 }

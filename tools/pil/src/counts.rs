@@ -451,6 +451,16 @@ fn contact_orbit(k: f32) {
         (table as f32 * k / 17.0) as u32,
         last * 1e3
     );
+    // The same table with each search started where the last two orbits point.
+    let loads: [f32; 17] = core::array::from_fn(|k| 2.4 * k as f32 / 16.0);
+    let mut along = [None; 17];
+    let table_along = counts(|| along = core::hint::black_box(&orbits).speeds_along(&loads));
+    hprintln!(
+        "contact orbits, 17 loads along the table (starts extrapolated): {} instructions ({} per load), {} mm/s at 2.4 N",
+        (table_along as f32 * k) as u32,
+        (table_along as f32 * k / 17.0) as u32,
+        along[16].unwrap_or(f32::NAN) * 1e3
+    );
     for load_n in [0.0f32, 2.0] {
         let mut speed = None;
         let c = counts(|| speed = core::hint::black_box(&orbits).mean_speed_m_s(core::hint::black_box(load_n)));
