@@ -216,6 +216,21 @@ impl ContactForce {
     }
 }
 
+/// (cos φ, sin φ) at the base steps' edges, φ = −π + k·2π/256, by the angle-addition recurrence
+/// from cos −π = −1, sin −π = 0: one rotation per edge instead of a cosine (cos and sin of
+/// 2π/256). The orbit's foot speed and the normal motion's drive both step along it.
+pub fn edge_phases() -> [(f32, f32); BASE_STEPS + 1] {
+    const _: () = assert!(BASE_STEPS == 256);
+    let (cr, sr) = (0.999_698_8_f32, 0.024_541_229_f32);
+    let mut out = [(0.0f32, 0.0f32); BASE_STEPS + 1];
+    let (mut co, mut si) = (-1.0f32, 0.0f32);
+    for e in out.iter_mut() {
+        *e = (co, si);
+        (co, si) = (co * cr - si * sr, si * cr + co * sr);
+    }
+    out
+}
+
 /// The carriage, the interface and the drive of one orbit.
 #[derive(Debug, Clone, Copy)]
 pub struct Carriage {
@@ -281,16 +296,7 @@ pub struct Orbits<'a> {
 
 impl<'a> Orbits<'a> {
     pub fn new(force: &'a ContactForce, c: Carriage) -> Self {
-        // cos(−π + k·2π/256) by the angle-addition recurrence from cos −π = −1, sin −π = 0: one
-        // rotation per edge instead of a cosine (cos and sin of 2π/256).
-        const _: () = assert!(BASE_STEPS == 256);
-        let (cr, sr) = (0.999_698_8_f32, 0.024_541_229_f32);
-        let mut cos_edge = [0.0f32; BASE_STEPS + 1];
-        let (mut co, mut si) = (-1.0f32, 0.0f32);
-        for e in cos_edge.iter_mut() {
-            *e = co;
-            (co, si) = (co * cr - si * sr, si * cr + co * sr);
-        }
+        let cos_edge = edge_phases().map(|(cos, _)| cos);
         Orbits {
             force,
             c,

@@ -19,7 +19,7 @@
 //! error: a true subharmonic (a pattern of periods that differ by more than the landing's
 //! rounding) and a motion that never repeats (chaotic bouncing).
 
-use crate::contact_orbit::{ContactForce, ForceBuilder, ForceError, BASE_STEPS, FINE};
+use crate::contact_orbit::{edge_phases, ContactForce, ForceBuilder, ForceError, BASE_STEPS, FINE};
 use heapless::Deque;
 
 /// Halvings of a base step that locate a contact switch: to 1/2^20 of the period.
@@ -208,7 +208,7 @@ impl NormalMotion {
             rest: [y1 / LENGTH_UNIT_M, 0.0, y2 / LENGTH_UNIT_M, 0.0, 0.0, 0.0, 1.0],
             weights_n: s.distance_weights_n(h),
             preload_n: d.preload_n,
-            ramp_steps: libm_round(RAMP_S * d.frequency_hz * BASE_STEPS as f32).max(1.0),
+            ramp_steps: round_half_up(RAMP_S * d.frequency_hz * BASE_STEPS as f32).max(1.0),
         })
     }
 
@@ -357,20 +357,8 @@ pub fn contact_force(s: &Stator, d: &NormalDrive) -> Result<Profile, ProfileErro
     NormalMotion::new(s, d)?.settle()
 }
 
-/// (cos φ, sin φ) at the base steps' edges, φ = −π + k·2π/256, by the angle-addition recurrence
-/// (one rotation per edge instead of a cosine).
-pub fn edge_phases() -> [(f32, f32); BASE_STEPS + 1] {
-    let (cr, sr) = (0.999_698_8_f32, 0.024_541_229_f32);
-    let mut out = [(0.0f32, 0.0f32); BASE_STEPS + 1];
-    let (mut co, mut si) = (-1.0f32, 0.0f32);
-    for e in out.iter_mut() {
-        *e = (co, si);
-        (co, si) = (co * cr - si * sr, si * cr + co * sr);
-    }
-    out
-}
-
-fn libm_round(x: f32) -> f32 {
+/// x rounded to the nearest whole number (x ≥ 0; `f32::round` is not in `core`).
+fn round_half_up(x: f32) -> f32 {
     (x + 0.5) as i32 as f32
 }
 
