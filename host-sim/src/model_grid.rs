@@ -56,6 +56,14 @@ pub fn operating_points() -> Vec<(f64, f64, f64)> {
         .collect()
 }
 
+/// The file `p` with its carriage mass replaced by the point's, and the point's operating point
+/// at the grid's 100 V: a grid point as every comparison over it builds its models.
+pub fn at_point(p: &Params, (mass_kg, preload_n, frequency_hz): (f64, f64, f64)) -> (Params, OperatingPoint) {
+    let mut q = p.clone();
+    q.slider.mass_kg = mass_kg;
+    (q, OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz })
+}
+
 /// The largest difference between two speed laws (m/s against load N) over [`LOAD_SHARES`] of
 /// `stall_n`, as a share of `no_load_m_s` (NaN where either has no speed).
 pub fn worst_over_loads(
@@ -78,9 +86,7 @@ pub fn compute(p: &Params) -> Vec<GridPoint> {
     operating_points()
         .par_iter()
         .flat_map_iter(|&(mass_kg, preload_n, frequency_hz)| {
-            let mut q = p.clone();
-            q.slider.mass_kg = mass_kg;
-            let op = OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz };
+            let (q, op) = at_point(p, (mass_kg, preload_n, frequency_hz));
             let contact = ContactModel::new(&q, op);
             let inertial = InertialModel::new(&q, op);
             let constant = ThrustModel::new(&q, op);

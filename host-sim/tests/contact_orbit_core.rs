@@ -5,7 +5,6 @@
 
 use host_sim::motor::params::Params;
 use host_sim::motor::plant::{contact_spring, friction_law};
-use host_sim::motor::steady::OperatingPoint;
 use host_sim::motor::steady_contact::{core_normal_motion, ContactModel, FINE_STEPS};
 use piezo_drive::contact_orbit::{Carriage, ContactForce, Orbits};
 use piezo_drive::normal_motion::contact_force;
@@ -52,9 +51,10 @@ fn the_cores_copy_follows_the_f64_model_within_1_percent_over_the_grid() {
     let results: Vec<Point> = points
         .par_iter()
         .map(|&(mass_kg, preload_n, frequency_hz)| {
-            let mut p = Params::prototype_sourced();
-            p.slider.mass_kg = mass_kg;
-            let op = OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz };
+            let (p, op) = host_sim::model_grid::at_point(
+                &Params::prototype_sourced(),
+                (mass_kg, preload_n, frequency_hz),
+            );
             let model = ContactModel::new(&p, op);
             let profile = &model.profile;
             let stall_n = model.stall_force_n();
@@ -123,9 +123,8 @@ fn the_cores_hinted_orbits_are_the_cold_ones() {
     // would), against each solved from nothing: the same orbit to a tenth of the grid's 1 %.
     for (mass_kg, preload_n, frequency_hz) in [(0.3, 16.0, 2200.0), (1.0, 5.0, 1500.0), (50.0, 10.0, 2200.0)]
     {
-        let mut p = Params::prototype_sourced();
-        p.slider.mass_kg = mass_kg;
-        let op = OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz };
+        let (p, op) =
+            host_sim::model_grid::at_point(&Params::prototype_sourced(), (mass_kg, preload_n, frequency_hz));
         let model = ContactModel::new(&p, op);
         let profile = &model.profile;
         let Ok(force) = ContactForce::from_fine(|j| profile.contact_n[j % profile.contact_n.len()] as f32)

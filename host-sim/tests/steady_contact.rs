@@ -284,9 +284,10 @@ fn the_orbits_halved_steps_give_the_speeds_of_uniform_fine_steps() {
     let worst = points
         .par_iter()
         .map(|&(mass_kg, preload_n, frequency_hz)| {
-            let mut p = Params::prototype_sourced();
-            p.slider.mass_kg = mass_kg;
-            let op = OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz };
+            let (p, op) = host_sim::model_grid::at_point(
+                &Params::prototype_sourced(),
+                (mass_kg, preload_n, frequency_hz),
+            );
             let model = ContactModel::new(&p, op);
             let fine = model.clone().on_fine_steps();
             let stall_n = fine.stall_force_n();
