@@ -10,6 +10,7 @@ use crate::gap::surrogate::{closed_params, new_anchor, Anchor};
 use crate::motor::effects::{model_speed_m_s, Condition, Effect, Effects};
 use crate::motor::params::Params;
 use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
 
 /// Median of |z| for a standard normal z (its 75 % quantile).
 const NORMAL_MEDIAN_ABS: f64 = 0.674_489_750_196_081_7;
@@ -247,11 +248,15 @@ impl Model {
 
     pub fn predict(&self, x: &[f64], data: &Data, rows: &[usize]) -> Vec<f64> {
         let p = self.params_at(x);
+        // Rows in parallel: the fits call this for every Jacobian column, and the closed form
+        // is a fifth of a contact base's time, much of it outside the parallel candidate tests.
         match &self.anchor {
-            None => rows.iter().map(|&i| model_speed_m_s(&p, &data.conds[i])).collect(),
+            None => rows.par_iter().map(|&i| model_speed_m_s(&p, &data.conds[i])).collect(),
             Some(a) => {
                 let q = closed_params(&p);
-                rows.iter().map(|&i| model_speed_m_s(&q, &data.conds[i]) + a.correction_m_s(i, x)).collect()
+                rows.par_iter()
+                    .map(|&i| model_speed_m_s(&q, &data.conds[i]) + a.correction_m_s(i, x))
+                    .collect()
             }
         }
     }

@@ -22,6 +22,7 @@ pub mod chi2;
 pub mod fit;
 pub mod measure;
 pub mod measured_csv;
+mod refits;
 pub mod report;
 mod stages;
 pub mod surrogate;

@@ -6,6 +6,7 @@
 
 use super::base::{fit_anchored, CANDIDATE_ANCHORS, MAX_ANCHORS};
 use super::fit::{self, fit as lm_fit, Data, Fit, Model, BASE_PARAMS};
+use super::refits::Refits;
 use super::{
     all_rows, axis_structure, base_calibration, base_starts, candidate_starts, clears_signature, cv_rms, dof,
     effect_named_params, ratio, score, separating_experiment, structure, sub_x, Ambiguity, AxisStructure,
@@ -129,6 +130,8 @@ pub(super) struct Selection {
     pub candidates: Vec<Candidate>,
     pub ambiguity: Vec<Ambiguity>,
     pub removed: Vec<Removed>,
+    /// The refits without some effects solved so far (the verdicts ask for the re-tests' again).
+    pub refits: Refits,
 }
 
 /// Rounds of effect selection: while effects may still be added and the residuals are not
@@ -145,6 +148,7 @@ pub(super) fn select_effects(
     let mut candidates_out: Vec<Candidate> = Vec::new();
     let mut ambiguity = Vec::new();
     let mut removed = Vec::new();
+    let mut refits = Refits::default();
     let mut round = 0;
     while state.model.effects.len() < opts.max_effects && state.ratio >= opts.consistent_ratio {
         round += 1;
@@ -170,9 +174,9 @@ pub(super) fn select_effects(
         cands[best].accepted = true;
         let (effect, x) = (cands[best].effect, cands[best].fit_x.clone());
         candidates_out.extend(cands);
-        state = accept_effect(&state, effect, x, round, data, opts, &mut removed);
+        state = accept_effect(&state, effect, x, round, data, opts, &mut removed, &mut refits);
     }
-    Selection { state, candidates: candidates_out, ambiguity, removed }
+    Selection { state, candidates: candidates_out, ambiguity, removed, refits }
 }
 
 /// Tests each effect of `todo` against the current state (in parallel): score at zero strength,
@@ -336,6 +340,7 @@ fn best_and_group(cands: &[Candidate], opts: &Options) -> Option<(usize, Vec<usi
 /// Adds the accepted `effect` to the model, refits from its candidate fit `x`, re-tests the
 /// earlier effects (each removal pushed to `removed`), and re-estimates the noise. Returns the
 /// new state.
+#[allow(clippy::too_many_arguments)]
 fn accept_effect(
     state: &State,
     effect: Effect,
@@ -344,11 +349,12 @@ fn accept_effect(
     data: &Data,
     opts: &Options,
     removed: &mut Vec<Removed>,
+    refits: &mut Refits,
 ) -> State {
     let mut model = state.model.clone();
     model.effects.push(effect);
     let (model, fit) = fit_anchored(&model, data, &all_rows(data), &[x], 40, MAX_ANCHORS, false);
-    let (model, fit, dropped) = retest_earlier(model, fit, effect, state.s, round, data, opts);
+    let (model, fit, dropped) = retest_earlier(model, fit, effect, (state.s, round), data, opts, refits);
     removed.extend(dropped);
     let (s, m) = refresh_noise(data, &fit, (state.s, state.noise_dof));
     let r = ratio(&fit, data.len(), model.n_params(), s);
@@ -361,13 +367,12 @@ fn retest_earlier(
     mut model: Model,
     mut fit: Fit,
     newest: Effect,
-    s: f64,
-    round: usize,
+    (s, round): (f64, usize),
     data: &Data,
     opts: &Options,
+    refits: &mut Refits,
 ) -> (Model, Fit, Vec<Removed>) {
     let mut removed = Vec::new();
-    let all = all_rows(data);
     let n = data.len();
     let mut changed = true;
     while changed {
@@ -376,10 +381,7 @@ fn retest_earlier(
             if e == newest {
                 continue;
             }
-            let mut reduced = model.clone();
-            reduced.effects.retain(|x| *x != e);
-            let start = sub_x(&model, &fit.x, &reduced);
-            let (reduced, f) = fit_anchored(&reduced, data, &all, &[start], 60, MAX_ANCHORS, false);
+            let (reduced, f) = refits.without(&model, &fit, &[e], data);
             let k = e.fit_params().len() as f64;
             let kept = (f.ssr - fit.ssr) / (s * s) - k * (n as f64).ln();
             if kept < opts.min_delta_bic {
@@ -437,9 +439,8 @@ pub(super) fn decide_tiers(
     data: &Data,
     opts: &Options,
 ) -> (Vec<Verdict>, Vec<PartialCandidate>) {
-    let state = &selection.state;
+    let (state, refits) = (&selection.state, &mut selection.refits);
     let n = data.len();
-    let all = all_rows(data);
     let s = state.s;
     let excess = |f: &Fit, p: usize| f.ssr / (s * s) - n.saturating_sub(p) as f64;
     let full_excess = excess(&state.fit, state.model.n_params()).max(0.0);
@@ -450,10 +451,7 @@ pub(super) fn decide_tiers(
         .iter()
         .zip(tests)
         .map(|(&e, t)| {
-            let mut without = state.model.clone();
-            without.effects.retain(|x| *x != e);
-            let start = sub_x(&state.model, &state.fit.x, &without);
-            let (wm, wf) = fit_anchored(&without, data, &all, &[start], 60, MAX_ANCHORS, false);
+            let (wm, wf) = refits.without(&state.model, &state.fit, &[e], data);
             let excess_without = excess(&wf, wm.n_params());
             let share =
                 if excess_without > 0.0 { (1.0 - full_excess / excess_without).clamp(0.0, 1.0) } else { 0.0 };
@@ -496,10 +494,7 @@ pub(super) fn decide_tiers(
     if failing.is_empty() {
         return (verdicts, Vec::new());
     }
-    let mut named = state.model.clone();
-    named.effects.retain(|e| !failing.contains(e));
-    let start = sub_x(&state.model, &state.fit.x, &named);
-    let (named, fit) = fit_anchored(&named, data, &all, &[start], 60, MAX_ANCHORS, false);
+    let (named, fit) = refits.without(&state.model, &state.fit, &failing, data);
     let (s, m) = refresh_noise(data, &fit, (state.s, state.noise_dof));
     let r = ratio(&fit, n, named.n_params(), s);
     let without = Without { full: state, named: &named, fit: &fit, s, ratio: r };
