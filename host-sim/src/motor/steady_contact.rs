@@ -67,6 +67,9 @@ const ROOT_TOLERANCE: f64 = 1e-6;
 /// see [`ContactModel::orbit_near`]).
 const WIDEST_BRACKET: f64 = 64.0;
 
+/// Secant steps from a hint before the bracketed search takes over.
+const SECANT_STEPS: usize = 4;
+
 /// Base steps per drive period: the normal motion settles on these, and the carriage's orbit
 /// takes them where nothing changes within one.
 pub const STEPS: usize = 256;
@@ -590,8 +593,9 @@ impl ContactModel {
 
     /// [`Self::orbit`] searched from `hint` (a nearby solution's start, e.g. the same point with
     /// other friction), the friction layer starting from the hint's: secant steps from its start
-    /// speed where it knows its slope, else (or when they leave its branch) a bracket of 2 % of
-    /// the foot's peak speed about it, widened fourfold until it holds the root. Returns the
+    /// speed where it knows its slope, else (or when they leave its branch) a bracket from the
+    /// points the steps evaluated on either side of the root, or 2 % of the foot's peak speed
+    /// about the hint (or the one side found), widened fourfold until it holds the root. Returns the
     /// orbit and where it starts. The root is the same as from the full bracket (to
     /// [`ROOT_TOLERANCE`] of the foot's peak speed); only the periods spent finding it are fewer.
     pub fn orbit_near(&self, load_n: f64, hint: Option<OrbitStart>) -> Option<(Orbit, OrbitStart)> {
@@ -618,20 +622,43 @@ impl ContactModel {
         // linear there, and two or three periods find the root. Each step's slope must stay
         // within a factor of two of the hint's (the same branch of the period map, which jumps
         // where friction weakens with speed), else the bracketed search below runs.
+        // The points the secant steps evaluated, nearest the root from each side (the excess
+        // falls with v(0)): where the steps leave their branch, the bracket starts from them.
+        let (mut below, mut above) = (None::<(f64, f64)>, None::<(f64, f64)>);
+        let mut seen = |x: f64, e: f64| {
+            if e > 0.0 && below.is_none_or(|(b, _)| x > b) {
+                below = Some((x, e));
+            } else if e < 0.0 && above.is_none_or(|(a, _)| x < a) {
+                above = Some((x, e));
+            }
+        };
         if let Some(h) = hint.filter(|h| h.v0_m_s.is_finite() && h.slope < 0.0) {
             let (mut x0, (mut e0, mut orbit)) = (h.v0_m_s, excess(h.v0_m_s));
+            seen(x0, e0);
             let mut slope = h.slope;
-            for _ in 0..4 {
+            // The last step's point is tested too: a search that ended on an orbit without
+            // looking at it fell back to the bracket (a third of the gap bench's searches).
+            for step in 0..=SECANT_STEPS {
                 if e0.abs() < slope.abs() * tol {
                     return Some((orbit, start_at(x0, slope)));
+                }
+                if step == SECANT_STEPS {
+                    break;
                 }
                 let x1 = x0 - e0 / slope;
                 if !x1.is_finite() || (x1 - h.v0_m_s).abs() > 0.5 * w {
                     break;
                 }
                 let (e1, o1) = excess(x1);
+                seen(x1, e1);
                 let s1 = (e1 - e0) / (x1 - x0);
                 if !(s1 <= 0.5 * h.slope && s1 >= 2.0 * h.slope) {
+                    // Near the root the secant's slope is the period map's roughness, not a
+                    // jump to another branch: a point whose excess puts it within the
+                    // tolerance of the root by either slope is an orbit all the same.
+                    if e1.abs() < s1.abs().min(slope.abs()) * tol {
+                        return Some((o1, start_at(x1, slope)));
+                    }
                     break;
                 }
                 (x0, e0, orbit, slope) = (x1, e1, o1, s1);
@@ -641,17 +668,33 @@ impl ContactModel {
         let ((mut a, mut ea), (mut b, mut eb)) = match hint_v0.filter(|h| h.is_finite() && *h > lo && *h < hi)
         {
             Some(h) => {
+                // Widened about the side the secant found, else about the hint (also where its
+                // two sides are out of order: the map is not monotone there).
+                let (below, above) = match (below, above) {
+                    (Some(a), Some(b)) if a.0 >= b.0 => (None, None),
+                    sides => sides,
+                };
+                let c = match (below, above) {
+                    (Some((x, _)), None) | (None, Some((x, _))) => x,
+                    _ => h,
+                };
                 let mut half = 0.02 * w;
-                let (mut a, mut b) = ((h - half).max(lo), (h + half).min(hi));
-                let (mut ea, mut eb) = (excess(a).0, excess(b).0);
+                let (mut a, mut ea) = below.unwrap_or_else(|| {
+                    let a = (c - half).max(lo);
+                    (a, excess(a).0)
+                });
+                let (mut b, mut eb) = above.unwrap_or_else(|| {
+                    let b = (c + half).min(hi);
+                    (b, excess(b).0)
+                });
                 while (ea <= 0.0 && a > lo) || (eb >= 0.0 && b < hi) {
                     half *= 4.0;
                     if ea <= 0.0 && a > lo {
-                        a = (h - half).max(lo);
+                        a = (c - half).max(lo);
                         ea = excess(a).0;
                     }
                     if eb >= 0.0 && b < hi {
-                        b = (h + half).min(hi);
+                        b = (c + half).min(hi);
                         eb = excess(b).0;
                     }
                 }
