@@ -7,7 +7,7 @@
 
 use crate::gap::measured_csv::MeasuredRow;
 use crate::gap::surrogate::{closed_params, new_anchor, Anchor};
-use crate::motor::effects::{model_speed_m_s, Condition, Effect, Effects};
+use crate::motor::effects::{Condition, Effect, EffectModel, Effects};
 use crate::motor::params::Params;
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -37,6 +37,9 @@ pub struct Data {
     /// reading), so they form one level of the preload condition and one curve.
     pub preload_level: Vec<usize>,
     pub n_curves: usize,
+    /// The first row with each row's operating point (its preload, voltage, frequency and
+    /// direction exactly; the load may differ): rows there share the closed form's model.
+    pub same_point: Vec<usize>,
 }
 
 /// Measured preloads closer than this (N) belong to one preload setting: several times the
@@ -99,7 +102,12 @@ impl Data {
                 }
             })
             .collect();
-        Data { conds, y, sigma, curve, preload_level, n_curves: keys.len() }
+        let point = |c: &Condition| {
+            (c.preload_n.to_bits(), c.voltage_v.to_bits(), c.frequency_hz.to_bits(), c.direction)
+        };
+        let mut first = std::collections::HashMap::new();
+        let same_point = conds.iter().enumerate().map(|(i, c)| *first.entry(point(c)).or_insert(i)).collect();
+        Data { conds, y, sigma, curve, preload_level, n_curves: keys.len(), same_point }
     }
 
     pub fn len(&self) -> usize {
@@ -248,17 +256,26 @@ impl Model {
 
     pub fn predict(&self, x: &[f64], data: &Data, rows: &[usize]) -> Vec<f64> {
         let p = self.params_at(x);
-        // Rows in parallel: the fits call this for every Jacobian column, and the closed form
-        // is a fifth of a contact base's time, much of it outside the parallel candidate tests.
-        match &self.anchor {
-            None => rows.par_iter().map(|&i| model_speed_m_s(&p, &data.conds[i])).collect(),
-            Some(a) => {
-                let q = closed_params(&p);
-                rows.par_iter()
-                    .map(|&i| model_speed_m_s(&q, &data.conds[i]) + a.correction_m_s(i, x))
-                    .collect()
-            }
-        }
+        let q = match &self.anchor {
+            None => p,
+            Some(_) => closed_params(&p),
+        };
+        // The closed form's model once per operating point (`model_speed_m_s` builds it for each
+        // row; it does not depend on the load), and the rows in parallel: the fits call this for
+        // every Jacobian column, and the closed form is a fifth of a contact base's time, much
+        // of it outside the parallel candidate tests.
+        let mut points: Vec<usize> = rows.iter().map(|&i| data.same_point[i]).collect();
+        points.sort_unstable();
+        points.dedup();
+        let models: Vec<EffectModel> =
+            points.par_iter().map(|&i| EffectModel::new(&q, &data.conds[i])).collect();
+        rows.par_iter()
+            .map(|&i| {
+                let model = &models[points.partition_point(|&j| j < data.same_point[i])];
+                let closed = model.speed_at_load_m_s(data.conds[i].load_n);
+                self.anchor.as_ref().map_or(closed, |a| closed + a.correction_m_s(i, x))
+            })
+            .collect()
     }
 
     fn weighted_resid(&self, x: &[f64], data: &Data, rows: &[usize]) -> Vec<f64> {
