@@ -143,12 +143,17 @@ pub struct ThrustModel {
     pub preload_n: f64,
     /// `kc·Yc`: amplitude of the contact force law (eq. 15).
     pub kc_yc_n: f64,
-    /// θc, exact relation.
+    /// θc, exact relation. Read it; it is set by [`Self::new`] and
+    /// [`Self::with_contact_force_amplitude`], which also set its half's cosine and sine.
     pub contact_angle_rad: f64,
     /// `ω·Xc`: peak tangential foot speed.
     pub foot_speed_m_s: f64,
     pub mu: f64,
     pub viscous_n_s_per_m: f64,
+    /// cos and sin of θc/2: the thrust integral and the contact force read them at every speed
+    /// and angle (the root of the speed at a load evaluates the thrust tens of times).
+    half_cos: f64,
+    half_sin: f64,
 }
 
 impl ThrustModel {
@@ -158,17 +163,22 @@ impl ThrustModel {
         ThrustModel {
             preload_n: op.preload_n,
             kc_yc_n,
-            contact_angle_rad: contact_angle_exact(op.preload_n, kc_yc_n),
+            contact_angle_rad: 0.0,
             foot_speed_m_s: TAU * op.frequency_hz * a.xc_m,
             mu: p.friction.mu_dynamic,
             viscous_n_s_per_m: p.friction.viscous_n_s_per_m,
+            half_cos: 1.0,
+            half_sin: 0.0,
         }
+        .with_contact_force_amplitude(kc_yc_n)
     }
 
     /// The same point with the contact force amplitude `kc·Yc` replaced (contact angle re-solved).
     pub fn with_contact_force_amplitude(mut self, kc_yc_n: f64) -> Self {
         self.kc_yc_n = kc_yc_n;
         self.contact_angle_rad = contact_angle_exact(self.preload_n, kc_yc_n);
+        let half = 0.5 * self.contact_angle_rad;
+        (self.half_cos, self.half_sin) = (half.cos(), half.sin());
         self
     }
 
@@ -181,7 +191,7 @@ impl ThrustModel {
         if self.full_contact() {
             self.preload_n + self.kc_yc_n * phi.cos()
         } else {
-            (self.kc_yc_n * (phi.cos() - (0.5 * self.contact_angle_rad).cos())).max(0.0)
+            (self.kc_yc_n * (phi.cos() - self.half_cos)).max(0.0)
         }
     }
 
@@ -207,13 +217,14 @@ impl ThrustModel {
             return coulomb - self.viscous_n_s_per_m * speed_m_s;
         }
         let half = 0.5 * self.contact_angle_rad;
-        let c = half.cos();
+        let c = self.half_cos;
         // I(b) = ∫₀ᵇ (cos φ − c) dφ: the drive arc is |φ| < min(φp, θc/2), the rest of the arc brakes.
-        let arc = |b: f64| b.sin() - c * b;
+        let arc_half = self.half_sin - c * half;
+        let arc = |b: f64| if b == half { arc_half } else { b.sin() - c * b };
         let m = phi_p.min(half);
-        let coulomb = r / TAU * (4.0 * arc(m) - 2.0 * arc(half));
+        let coulomb = r / TAU * (4.0 * arc(m) - 2.0 * arc_half);
         let viscous =
-            self.viscous_n_s_per_m / TAU * (2.0 * wx * half.sin() - self.contact_angle_rad * speed_m_s);
+            self.viscous_n_s_per_m / TAU * (2.0 * wx * self.half_sin - self.contact_angle_rad * speed_m_s);
         coulomb + viscous
     }
 
