@@ -3,7 +3,7 @@
 //! (`[model] steady = "contact"` in the parameter file). The plant is the truth; its hidden
 //! parameters are the independent expectation.
 //!
-//! CI runs the clean set and one hidden effect (about a minute each on 2 cores); the other
+//! CI runs the clean set and two hidden effects (10–15 s each on 2 cores); the other
 //! effects and the 0.3 and 5 kg carriages are in `cargo bench -p host-sim --bench gap_recovery`.
 
 use host_sim::gap::measure::{synthesize, Grid};
@@ -66,5 +66,24 @@ fn on_a_real_carriage_a_hidden_asymmetry_is_named_and_recovered() {
     assert_eq!(v.tier, Tier::Named, "{v:?}");
     let fitted = r.final_effects[0].params[0].value;
     assert!((fitted - 0.07).abs() <= 0.2 * 0.07, "asymmetry fitted {fitted}");
+    assert!(r.gap_after <= 0.4 * r.gap_before, "gap {} -> {}", r.gap_before, r.gap_after);
+}
+
+/// A hidden Stribeck rise of 1.5 (μ up to 2.5× at zero slip) on the 1 kg carriage. Without the
+/// effect the base fit takes it up as a larger μ (2.3× its file value), and fits with the effect
+/// that start there stay in that valley (before: a partial candidate explaining 31 % of the
+/// excess, gap 0.093 -> 0.087). From the file's base values the contact model finds the rise:
+/// named first, its size within 20 %, the gap down to at most 40 % of before.
+#[test]
+fn on_a_real_carriage_a_hidden_stribeck_rise_is_named_and_recovered() {
+    let r = run(&[("stribeck_rise", 1.5)], 7);
+    assert_eq!(
+        r.named_effects.first().map(String::as_str),
+        Some("stribeck_friction"),
+        "{:?}",
+        r.named_effects
+    );
+    let fitted = r.final_effects[0].params[0].value;
+    assert!((fitted - 1.5).abs() <= 0.2 * 1.5, "rise fitted {fitted}");
     assert!(r.gap_after <= 0.4 * r.gap_before, "gap {} -> {}", r.gap_before, r.gap_after);
 }

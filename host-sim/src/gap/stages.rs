@@ -195,7 +195,7 @@ fn test_candidates(
     progress(&label, 0, todo.len());
     let done = std::sync::atomic::AtomicUsize::new(0);
     let cv_without = cv_rms(&state.model, data, &state.fit.x, opts.folds);
-    let (mut cands, cheap_x): (Vec<Candidate>, Vec<Vec<f64>>) = todo
+    let (mut cands, refine_from): (Vec<Candidate>, Vec<Vec<RefineFrom>>) = todo
         .par_iter()
         .map(|&effect| {
             let sc = score(state, effect, data);
@@ -207,22 +207,42 @@ fn test_candidates(
             // On a contact base that fit moved the effect the way the closed form does; one
             // anchor at its end point refits it on the contact model's own slopes, and the
             // likelihood ratio is between the contact model's sums of squares.
-            let (m, f) = if m.anchor.is_some() {
+            let (m, f, refine_from) = if m.anchor.is_some() {
                 let (m1, f1) = fit_anchored(&m, data, &all, &[f.x], 60, CANDIDATE_ANCHORS, true);
-                match starts.first() {
+                let (m1, f1) = match starts.first() {
                     // Worse than without the effect: the closed form led the effect astray; from
                     // zero strength on the contact model's own slopes instead (never worse).
                     Some(zero) if f1.ssr > state.fit.ssr => {
                         fit_anchored(&m, data, &all, std::slice::from_ref(zero), 60, CANDIDATE_ANCHORS, true)
                     }
                     _ => (m1, f1),
+                };
+                // The base fit may have taken up what the effect does, and the surrogate, whose
+                // closed form has the effect in its own shape, keeps it there: a Stribeck rise
+                // of 1.5 on the 1 kg carriage looked like μ 2.3× its file value to the base fit,
+                // and every surrogate start ended at μ 2.3×, rise 0.12. So the contact model
+                // also fits from the file's base values with the effect at its largest start.
+                // Where that wins after one anchor move, both are fitted to the end if the
+                // candidate leads: one anchor move does not tell which valley is the deeper.
+                let surrogate_path = cheap;
+                match starts.last().map(|s| from_file_values(s)) {
+                    Some(x) => {
+                        let (m2, f2) = fit_anchored(&m, data, &all, &[x], 60, CANDIDATE_ANCHORS, false);
+                        if f2.ssr < f1.ssr {
+                            let from = f2.x.clone();
+                            (m2, f2, vec![surrogate_path, from])
+                        } else {
+                            (m1, f1, vec![surrogate_path])
+                        }
+                    }
+                    None => (m1, f1, vec![surrogate_path]),
                 }
             } else {
-                (m, f)
+                (m, f, vec![cheap])
             };
             let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(&label, d, todo.len());
-            (candidate(state, effect, round, sc, &m, &f, cv_without, data, opts), cheap)
+            (candidate(state, effect, round, sc, &m, &f, cv_without, data, opts), refine_from)
         })
         .unzip();
     // On a contact base one anchor move leaves a candidate short of its optimum where the
@@ -232,21 +252,15 @@ fn test_candidates(
         let mut by_lr: Vec<usize> = (0..cands.len()).collect();
         by_lr.sort_by(|&a, &b| cands[b].lr.total_cmp(&cands[a].lr));
         let lead: Vec<usize> = by_lr.into_iter().take(LEADING_CANDIDATES).collect();
-        let refined: Vec<(usize, Candidate)> = lead
+        let runs: Vec<(usize, &RefineFrom)> =
+            lead.iter().flat_map(|&i| refine_from[i].iter().map(move |start| (i, start))).collect();
+        let refined: Vec<(usize, Candidate)> = runs
             .par_iter()
-            .map(|&i| {
+            .map(|&(i, x)| {
                 let c = &cands[i];
                 let mut m = state.model.clone();
                 m.effects.push(c.effect);
-                let (m, f) = fit_anchored(
-                    &m,
-                    data,
-                    &all,
-                    std::slice::from_ref(&cheap_x[i]),
-                    60,
-                    LEADING_ANCHORS,
-                    true,
-                );
+                let (m, f) = fit_anchored(&m, data, &all, std::slice::from_ref(x), 60, LEADING_ANCHORS, true);
                 (i, candidate(state, c.effect, round, c.score, &m, &f, cv_without, data, opts))
             })
             .collect();
@@ -263,6 +277,17 @@ fn test_candidates(
     }
     cands.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
     cands
+}
+
+/// A point a leading candidate's refinement starts from.
+type RefineFrom = Vec<f64>;
+
+/// `start` with the base factors at the parameter file's values (0: the factors are logs of
+/// the file's values); the effects' values kept.
+fn from_file_values(start: &[f64]) -> Vec<f64> {
+    let mut x = start.to_vec();
+    x[..BASE_PARAMS].fill(0.0);
+    x
 }
 
 /// Candidates a contact base fits to the end in each round, the leading ones by likelihood
