@@ -42,7 +42,7 @@ pub const ANCHOR_TOLERANCE: f64 = 1e-3;
 /// contact model's speed is rough on small scales: with 1 % steps the slopes of ρ and of a drive
 /// gain pointed the trust region nowhere (an amplifier pole at 2.5 kHz on the 1 kg carriage
 /// stopped at 3.6 kHz, gap 48 % of before); with 5 % it reaches 2.9 kHz (gap 22 % of before).
-const SLOPE_STEP: f64 = 0.05;
+pub const SLOPE_STEP: f64 = 0.05;
 
 /// `v_contact − v_closed` of `model` at parameters `x` for every data row (in parallel): one
 /// contact-model evaluation of each row, its orbit searched near `hints` (per row, None: none).

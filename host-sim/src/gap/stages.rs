@@ -4,7 +4,7 @@
 //! re-tested), test the accepted effects' signatures, demote those that fail to partial
 //! candidates, and build the report.
 
-use super::base::{fit_anchored, CANDIDATE_ANCHORS, MAX_ANCHORS};
+use super::base::{fit_anchored, CANDIDATE_ANCHORS, MAX_ANCHORS, SLOPE_STEP};
 use super::fit::{self, fit as lm_fit, Data, Fit, Model, BASE_PARAMS};
 use super::refits::Refits;
 use super::{
@@ -224,8 +224,10 @@ fn test_candidates(
                 // also fits from the file's base values with the effect at its largest start.
                 // Where that wins after one anchor move, both are fitted to the end if the
                 // candidate leads: one anchor move does not tell which valley is the deeper.
+                // Not where the fit's base is within a slope step of the file's: the same start.
                 let surrogate_path = cheap;
-                match starts.last().map(|s| from_file_values(s)) {
+                let near_file = state.fit.x[..BASE_PARAMS].iter().all(|x| x.abs() < SLOPE_STEP);
+                match starts.last().filter(|_| !near_file).map(|s| from_file_values(s)) {
                     Some(x) => {
                         let (m2, f2) = fit_anchored(&m, data, &all, &[x], 60, CANDIDATE_ANCHORS, false);
                         if f2.ssr < f1.ssr {
