@@ -34,6 +34,10 @@ fn run(hidden: &[(&str, f64)], seed: u64) -> GapReport {
     r
 }
 
+fn assert_named_first(r: &GapReport, effect: &str) {
+    assert_eq!(r.named_effects.first().map(String::as_str), Some(effect), "{:?}", r.named_effects);
+}
+
 /// No hidden effect: nothing is named, and the calibrated contact model is within noise of the
 /// plant (gap ≤ 3 % of the mean speed with 1 % noise on each speed plus a floor of a quarter of
 /// the mean; the constant-speed base left 0.64 here). The calibration lands on the plant's own
@@ -56,12 +60,7 @@ fn on_a_real_carriage_without_hidden_effects_nothing_is_named() {
 #[test]
 fn on_a_real_carriage_a_hidden_asymmetry_is_named_and_recovered() {
     let r = run(&[("asymmetry_fraction", 0.07)], 5);
-    assert_eq!(
-        r.named_effects.first().map(String::as_str),
-        Some("assembly_asymmetry"),
-        "{:?}",
-        r.named_effects
-    );
+    assert_named_first(&r, "assembly_asymmetry");
     let v = &r.verdicts[0];
     assert_eq!(v.tier, Tier::Named, "{v:?}");
     let fitted = r.final_effects[0].params[0].value;
@@ -77,12 +76,7 @@ fn on_a_real_carriage_a_hidden_asymmetry_is_named_and_recovered() {
 #[test]
 fn on_a_real_carriage_a_hidden_stribeck_rise_is_named_and_recovered() {
     let r = run(&[("stribeck_rise", 1.5)], 7);
-    assert_eq!(
-        r.named_effects.first().map(String::as_str),
-        Some("stribeck_friction"),
-        "{:?}",
-        r.named_effects
-    );
+    assert_named_first(&r, "stribeck_friction");
     let fitted = r.final_effects[0].params[0].value;
     assert!((fitted - 1.5).abs() <= 0.2 * 1.5, "rise fitted {fitted}");
     assert!(r.gap_after <= 0.4 * r.gap_before, "gap {} -> {}", r.gap_before, r.gap_after);
