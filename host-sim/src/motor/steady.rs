@@ -220,9 +220,8 @@ impl ThrustModel {
         let c = self.half_cos;
         // I(b) = ∫₀ᵇ (cos φ − c) dφ: the drive arc is |φ| < min(φp, θc/2), the rest of the arc brakes.
         let arc_half = self.half_sin - c * half;
-        let arc = |b: f64| if b == half { arc_half } else { b.sin() - c * b };
-        let m = phi_p.min(half);
-        let coulomb = r / TAU * (4.0 * arc(m) - 2.0 * arc_half);
+        let arc_drive = if phi_p < half { phi_p.sin() - c * phi_p } else { arc_half };
+        let coulomb = r / TAU * (4.0 * arc_drive - 2.0 * arc_half);
         let viscous =
             self.viscous_n_s_per_m / TAU * (2.0 * wx * self.half_sin - self.contact_angle_rad * speed_m_s);
         coulomb + viscous
