@@ -117,6 +117,33 @@ fn preload_dependent_friction_and_hertz_follow_their_laws() {
 }
 
 #[test]
+fn a_speed_searched_near_a_nearby_one_is_the_full_searchs() {
+    // A fit's Jacobian column searches each speed first next to the speed at the column's
+    // start (`constant_speed_near_m_s`); the root is the full search's to its tolerance (1e-11
+    // of the foot speed) whether the hint is within the narrow bracket, outside it, of the
+    // other sense or zero. Every effect at its strength, forward, overrun and stalled loads.
+    for (name, value) in HIDDEN {
+        let mut q = Params::heavy_slider();
+        q.effects.set(name, value).unwrap();
+        for (preload_n, frequency_hz) in [(10.0, 1500.0), (16.0, 2200.0)] {
+            let stall = EffectModel::new(&q, &cond(preload_n, 100.0, frequency_hz, 0.0, 1)).thrust_n(0.0);
+            for load_n in [0.0, 0.5 * stall, 0.95 * stall, 1.3 * stall] {
+                let em = EffectModel::new(&q, &cond(preload_n, 100.0, frequency_hz, load_n, 1));
+                let wx = em.base.foot_speed_m_s;
+                let full = em.constant_speed_at_load_m_s(load_n);
+                for near in [full * (1.0 + 1e-6), full + 3e-5 * wx, full * 1.5, -full, 0.0] {
+                    let found = em.constant_speed_near_m_s(load_n, near);
+                    assert!(
+                        (found - full).abs() < 1e-10 * wx,
+                        "{name} {preload_n} N {load_n:.3} N near {near:e}: {found:e} against {full:e}"
+                    );
+                }
+            }
+        }
+    }
+}
+
+#[test]
 fn stribeck_thrust_matches_a_direct_period_average_of_the_same_law() {
     let mut q = Params::heavy_slider();
     q.effects.set("stribeck_rise", 1.5).unwrap();

@@ -255,6 +255,13 @@ impl Model {
     }
 
     pub fn predict(&self, x: &[f64], data: &Data, rows: &[usize]) -> Vec<f64> {
+        self.evaluate(x, data, rows, None).0
+    }
+
+    /// The prediction of `rows` at `x` and the closed form's constant-speed speeds under it
+    /// (before the carriage's inertial part and the anchor's correction), those searched first
+    /// near `near`'s (the same rows' at nearby parameters).
+    fn evaluate(&self, x: &[f64], data: &Data, rows: &[usize], near: Option<&[f64]>) -> (Vec<f64>, Vec<f64>) {
         let p = self.params_at(x);
         let q = match &self.anchor {
             None => p,
@@ -270,21 +277,35 @@ impl Model {
         let models: Vec<EffectModel> =
             points.par_iter().map(|&i| EffectModel::new(&q, &data.conds[i])).collect();
         rows.par_iter()
-            .map(|&i| {
+            .enumerate()
+            .map(|(k, &i)| {
                 let model = &models[points.partition_point(|&j| j < data.same_point[i])];
-                let closed = model.speed_at_load_m_s(data.conds[i].load_n);
-                self.anchor.as_ref().map_or(closed, |a| closed + a.correction_m_s(i, x))
+                let load_n = data.conds[i].load_n;
+                let constant = match near.and_then(|n| n.get(k)) {
+                    Some(&v) => model.constant_speed_near_m_s(load_n, v),
+                    None => model.constant_speed_at_load_m_s(load_n),
+                };
+                let closed = model.speed_from_constant_m_s(load_n, constant);
+                (self.anchor.as_ref().map_or(closed, |a| closed + a.correction_m_s(i, x)), constant)
             })
-            .collect()
+            .unzip()
     }
 
-    fn weighted_resid(&self, x: &[f64], data: &Data, rows: &[usize]) -> Vec<f64> {
-        let pred = self.predict(x, data, rows);
-        rows.iter().zip(pred).map(|(&i, p)| (p - data.y[i]) / data.sigma[i]).collect()
+    /// Weighted residuals at `x` and the constant-speed speeds under them ([`Self::evaluate`]).
+    fn weighted_resid(
+        &self,
+        x: &[f64],
+        data: &Data,
+        rows: &[usize],
+        near: Option<&[f64]>,
+    ) -> (Vec<f64>, Vec<f64>) {
+        let (pred, constant) = self.evaluate(x, data, rows, near);
+        (rows.iter().zip(pred).map(|(&i, p)| (p - data.y[i]) / data.sigma[i]).collect(), constant)
     }
 
-    /// Weighted Jacobian of the residuals (rows × params), forward differences inside the bounds.
-    pub fn jacobian(&self, x: &[f64], data: &Data, rows: &[usize], r0: &[f64]) -> DMatrix<f64> {
+    /// Weighted Jacobian of the residuals (rows × params), forward differences inside the bounds,
+    /// each column's speeds searched near `constant` (the constant-speed speeds at `x`).
+    fn jacobian(&self, x: &[f64], data: &Data, rows: &[usize], r0: &[f64], constant: &[f64]) -> DMatrix<f64> {
         let b = self.bounds();
         let n = x.len();
         let mut j = DMatrix::zeros(rows.len(), n);
@@ -296,7 +317,7 @@ impl Model {
             }
             let mut xp = x.to_vec();
             xp[k] += h;
-            let rp = self.weighted_resid(&xp, data, rows);
+            let (rp, _) = self.weighted_resid(&xp, data, rows, Some(constant));
             for i in 0..rows.len() {
                 j[(i, k)] = (rp[i] - r0[i]) / h;
             }
@@ -336,11 +357,11 @@ fn lm(model: &Model, data: &Data, rows: &[usize], start: &[f64], max_iter: usize
     };
     let mut x = start.to_vec();
     clamp(&mut x);
-    let mut r = model.weighted_resid(&x, data, rows);
+    let (mut r, mut constant) = model.weighted_resid(&x, data, rows, None);
     let mut ssr: f64 = r.iter().map(|v| v * v).sum();
     let mut lambda = 1e-3;
     let n = x.len();
-    let mut j = model.jacobian(&x, data, rows, &r);
+    let mut j = model.jacobian(&x, data, rows, &r, &constant);
     for _ in 0..max_iter {
         let jt = j.transpose();
         let a = &jt * &j;
@@ -359,12 +380,13 @@ fn lm(model: &Model, data: &Data, rows: &[usize], start: &[f64], max_iter: usize
             let mut xn: Vec<f64> = x.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
             clamp(&mut xn);
             let moved: f64 = xn.iter().zip(&x).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-            let rn = model.weighted_resid(&xn, data, rows);
+            let (rn, cn) = model.weighted_resid(&xn, data, rows, None);
             let sn: f64 = rn.iter().map(|v| v * v).sum();
             if sn < ssr {
                 let rel = (ssr - sn) / ssr.max(1e-300);
                 x = xn;
                 r = rn;
+                constant = cn;
                 ssr = sn;
                 lambda = (lambda / 4.0).max(1e-9);
                 improved = true;
@@ -373,13 +395,16 @@ fn lm(model: &Model, data: &Data, rows: &[usize], start: &[f64], max_iter: usize
             }
             lambda *= 5.0;
         }
-        if !improved || tiny_step {
+        if !improved {
             break;
         }
-        j = model.jacobian(&x, data, rows, &r);
+        j = model.jacobian(&x, data, rows, &r, &constant);
+        if tiny_step {
+            break;
+        }
     }
-    let jac = model.jacobian(&x, data, rows, &r);
-    Fit { x, ssr, resid: r, jac }
+    // `j` is the Jacobian at `x`: taken at the start and after every step.
+    Fit { x, ssr, resid: r, jac: j }
 }
 
 /// Covariance of the parameters at a fit for a noise scale `s` (weighted units).

@@ -135,7 +135,11 @@ impl EffectModel {
     /// guide's Coulomb friction; negative when the load overruns the motor. With
     /// `slider_inertia`, the constant-speed speed plus the carriage's inertial correction.
     pub fn speed_at_load_m_s(&self, load_n: f64) -> f64 {
-        let v = self.constant_speed_at_load_m_s(load_n);
+        self.speed_from_constant_m_s(load_n, self.constant_speed_at_load_m_s(load_n))
+    }
+
+    /// [`Self::speed_at_load_m_s`] from the constant-speed speed `v` at `load_n`.
+    pub fn speed_from_constant_m_s(&self, load_n: f64, v: f64) -> f64 {
         if self.inverse_mass_per_kg == 0.0 || v == 0.0 {
             // v = 0: held by the guide's Coulomb friction (the orbit is not solved there).
             return v;
@@ -147,6 +151,26 @@ impl EffectModel {
             self.inverse_mass_per_kg,
             resisting,
         )
+    }
+
+    /// [`Self::constant_speed_at_load_m_s`] found first within ±[`NEAR_SHARE`] of the foot's
+    /// speed about `near` (the same load's speed at nearby parameters, e.g. a fit's Jacobian
+    /// column): two thrusts bracket it and the root is refined to the same absolute tolerance as
+    /// the full search, in a bracket ten thousand times narrower. Where they do not bracket it
+    /// (or `near` is 0, the guide's stall band), the full search.
+    pub fn constant_speed_near_m_s(&self, load_n: f64, near: f64) -> f64 {
+        let wx = self.base.foot_speed_m_s.max(1e-12);
+        let half = NEAR_SHARE * wx;
+        let sense = near.signum();
+        if near.abs() > half {
+            let net = |v: f64| self.thrust_n(v) - self.resisting_n(load_n, v, sense);
+            let (a, b) = (near - half, near + half);
+            if net(a) > 0.0 && net(b) < 0.0 {
+                // The full search's tolerance, 1e-11 of its first bracket (at least wx).
+                return falling_root(net, a, b, 1e-11 * wx / (b - a));
+            }
+        }
+        self.constant_speed_at_load_m_s(load_n)
     }
 
     /// [`Self::speed_at_load_m_s`] of a slider that cannot change speed within a period.
@@ -172,6 +196,10 @@ impl EffectModel {
         }
     }
 }
+
+/// Half-width of [`EffectModel::constant_speed_near_m_s`]'s first bracket, in foot speeds: a
+/// Jacobian column's 1e-6 step moves a speed by far less.
+pub const NEAR_SHARE: f64 = 1e-4;
 
 /// 20-point Gauss–Legendre quadrature on [a, b].
 fn gauss_legendre(f: &impl Fn(f64) -> f64, a: f64, b: f64) -> f64 {
