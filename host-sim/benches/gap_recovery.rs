@@ -1,7 +1,7 @@
 //! The model-gap workflow's recoveries on real carriages (issue 29 item 3), the sets CI leaves
 //! out: each library effect at a moderate size hidden in the sourced plant's 0.3, 1 and 5 kg
 //! carriages, and each carriage clean (`cargo bench -p host-sim --bench gap_recovery`, about
-//! 7 minutes on 2 cores; a filter argument runs the rows whose label contains it, e.g.
+//! 3 minutes on 2 cores; a filter argument runs the rows whose label contains it, e.g.
 //! `-- rail`). Each row: named first?, the fitted size against the hidden one (within 20 %?), the
 //! gap before and after (down to 40 %?), the tiers, the wall time. Not a criterion bench: one
 //! run takes a minute, and the figures are the verdicts.
