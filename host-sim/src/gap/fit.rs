@@ -326,6 +326,15 @@ impl Model {
     }
 }
 
+/// Levenberg–Marquardt iterations of a fit (on a contact base, of each anchor's surrogate fit):
+/// the base calibration from the file's values, which may be far off.
+pub const BASE_ITERATIONS: usize = 100;
+/// ... a fit with an effect added or dropped: a candidate's, a refit without some effects, a
+/// partial candidate's.
+pub const EFFECT_ITERATIONS: usize = 60;
+/// ... the refit of an accepted effect from its candidate's fit, and each cross-validation fold's.
+pub const REFIT_ITERATIONS: usize = 40;
+
 /// Result of one fit.
 #[derive(Debug, Clone)]
 pub struct Fit {

@@ -419,7 +419,7 @@ fn cv_rms(model: &Model, data: &Data, x0: &[f64], folds: usize) -> f64 {
         if test.is_empty() || train.len() <= model.n_params() {
             continue;
         }
-        let fit = lm_fit(model, data, &train, &[x0.to_vec()], 40);
+        let fit = lm_fit(model, data, &train, &[x0.to_vec()], fit::REFIT_ITERATIONS);
         let pred = model.predict(&fit.x, data, &test);
         for (&i, p) in test.iter().zip(pred) {
             sum += ((p - data.y[i]) / data.sigma[i]).powi(2);

@@ -4,13 +4,10 @@
 //! every row (a fit is deterministic in its model, start and anchor, so the answer is the same).
 
 use super::base::{fit_anchored, MAX_ANCHORS};
-use super::fit::{Data, Fit, Model};
+use super::fit::{Data, Fit, Model, EFFECT_ITERATIONS};
 use super::{all_rows, sub_x};
 use crate::motor::effects::Effect;
 use std::sync::Arc;
-
-/// Iterations of a refit's surrogate fits.
-const MAX_ITER: usize = 60;
 
 /// The refits solved so far, by the model they were taken from and the effects kept.
 #[derive(Default)]
@@ -51,7 +48,8 @@ impl Refits {
         let mut reduced = model.clone();
         reduced.effects.clone_from(&kept);
         let start = sub_x(model, &fit.x, &reduced);
-        let result = fit_anchored(&reduced, data, &all_rows(data), &[start], MAX_ITER, MAX_ANCHORS, false);
+        let result =
+            fit_anchored(&reduced, data, &all_rows(data), &[start], EFFECT_ITERATIONS, MAX_ANCHORS, false);
         self.done.push(Done { from: model.clone(), from_x, kept, result: result.clone() });
         result
     }

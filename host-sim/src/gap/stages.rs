@@ -5,7 +5,9 @@
 //! candidates, and build the report.
 
 use super::base::{fit_anchored, CANDIDATE_ANCHORS, MAX_ANCHORS, SLOPE_STEP};
-use super::fit::{self, fit as lm_fit, Data, Fit, Model, BASE_PARAMS};
+use super::fit::{
+    self, fit as lm_fit, Data, Fit, Model, BASE_ITERATIONS, BASE_PARAMS, EFFECT_ITERATIONS, REFIT_ITERATIONS,
+};
 use super::refits::Refits;
 use super::{
     all_rows, axis_structure, base_calibration, base_starts, candidate_starts, clears_signature, cv_rms, dof,
@@ -63,8 +65,15 @@ pub(super) struct Before {
 pub(super) fn calibrate_base(base: &Params, data: &Data, progress: ProgressFn) -> (State, Before) {
     let all = all_rows(data);
     progress("calibrating the base model", 0, 1);
-    let (base_model, base_fit) =
-        fit_anchored(&Model::new(base, data), data, &all, &base_starts(BASE_PARAMS), 100, MAX_ANCHORS, false);
+    let (base_model, base_fit) = fit_anchored(
+        &Model::new(base, data),
+        data,
+        &all,
+        &base_starts(BASE_PARAMS),
+        BASE_ITERATIONS,
+        MAX_ANCHORS,
+        false,
+    );
     let (s0, m0) = estimate_noise(data, &base_fit);
     let pred = base_model.predict(&base_fit.x, data, &all);
     let before = Before {
@@ -202,7 +211,7 @@ fn test_candidates(
             let mut m = state.model.clone();
             m.effects.push(effect);
             let starts = candidate_starts(&state.fit.x, effect, data);
-            let f = lm_fit(&m, data, &all, &starts, 60);
+            let f = lm_fit(&m, data, &all, &starts, EFFECT_ITERATIONS);
             let cheap = f.x.clone();
             let k = effect.fit_params().len();
             let pays = |f: &Fit| {
@@ -213,7 +222,8 @@ fn test_candidates(
             // anchor at its end point refits it on the contact model's own slopes, and the
             // likelihood ratio is between the contact model's sums of squares.
             let (m, f, refine_from) = if m.anchor.is_some() {
-                let (m1, f1) = fit_anchored(&m, data, &all, &[f.x], 60, CANDIDATE_ANCHORS, true);
+                let (m1, f1) =
+                    fit_anchored(&m, data, &all, &[f.x], EFFECT_ITERATIONS, CANDIDATE_ANCHORS, true);
                 let (m1, f1) = match starts.first() {
                     // Not paying its way (ΔBIC below the threshold) from where the closed form
                     // led it: the closed form may have led the effect astray, so it is fitted
@@ -222,7 +232,8 @@ fn test_candidates(
                     // measured preload, where the contact model's slopes in the effect are zero;
                     // the base factors' own gain there made that fit look better than none.
                     Some(zero) if !pays(&f1) && zero[zero.len() - k..] != cheap[cheap.len() - k..] => {
-                        let (m0, f0) = fit_anchored(&m, data, &all, &starts, 60, CANDIDATE_ANCHORS, true);
+                        let (m0, f0) =
+                            fit_anchored(&m, data, &all, &starts, EFFECT_ITERATIONS, CANDIDATE_ANCHORS, true);
                         if f0.ssr < f1.ssr {
                             (m0, f0)
                         } else {
@@ -243,7 +254,8 @@ fn test_candidates(
                 let near_file = state.fit.x[..BASE_PARAMS].iter().all(|x| x.abs() < SLOPE_STEP);
                 match starts.last().filter(|_| !near_file).map(|s| from_file_values(s)) {
                     Some(x) => {
-                        let (m2, f2) = fit_anchored(&m, data, &all, &[x], 60, CANDIDATE_ANCHORS, false);
+                        let (m2, f2) =
+                            fit_anchored(&m, data, &all, &[x], EFFECT_ITERATIONS, CANDIDATE_ANCHORS, false);
                         if f2.ssr < f1.ssr {
                             let from = f2.x.clone();
                             (m2, f2, vec![surrogate_path, from])
@@ -276,7 +288,15 @@ fn test_candidates(
                 let c = &cands[i];
                 let mut m = state.model.clone();
                 m.effects.push(c.effect);
-                let (m, f) = fit_anchored(&m, data, &all, std::slice::from_ref(x), 60, LEADING_ANCHORS, true);
+                let (m, f) = fit_anchored(
+                    &m,
+                    data,
+                    &all,
+                    std::slice::from_ref(x),
+                    EFFECT_ITERATIONS,
+                    LEADING_ANCHORS,
+                    true,
+                );
                 (i, candidate(state, c.effect, round, c.score, &m, &f, cv_without, data, opts))
             })
             .collect();
@@ -394,7 +414,8 @@ fn accept_effect(
 ) -> State {
     let mut model = state.model.clone();
     model.effects.push(effect);
-    let (model, fit) = fit_anchored(&model, data, &all_rows(data), &[x], 40, MAX_ANCHORS, false);
+    let (model, fit) =
+        fit_anchored(&model, data, &all_rows(data), &[x], REFIT_ITERATIONS, MAX_ANCHORS, false);
     let (model, fit, dropped) = retest_earlier(model, fit, effect, (state.s, round), data, opts, refits);
     removed.extend(dropped);
     let (s, m) = refresh_noise(data, &fit, (state.s, state.noise_dof));
@@ -589,7 +610,7 @@ fn partial_candidate(e: Effect, round: usize, w: &Without, data: &Data, opts: &O
     with.effects.push(e);
     let mut starts = vec![sub_x(&w.full.model, &w.full.fit.x, &with)];
     starts.extend(candidate_starts(&w.fit.x, e, data));
-    let (with, f) = fit_anchored(&with, data, &all, &starts, 60, MAX_ANCHORS, false);
+    let (with, f) = fit_anchored(&with, data, &all, &starts, EFFECT_ITERATIONS, MAX_ANCHORS, false);
     let structure = axis_structure(data, &f.resid, decision_s, opts.signature_alpha, e.signature());
     let mut above: Vec<&AxisStructure> = structure.iter().filter(|a| !a.consistent_with_noise).collect();
     above.sort_by(|a, b| b.chi2_per_dof.total_cmp(&a.chi2_per_dof));
