@@ -239,6 +239,22 @@ fn a_foot_whose_landing_repeats_only_to_its_rounding_is_solved_over_its_mean_per
     }
 }
 
+/// `p` on a carriage of `mass_kg` at 100 V: the parameters, the normal motion and the model
+/// along +x.
+fn on_carriage(
+    p: &Params,
+    mass_kg: f64,
+    preload_n: f64,
+    frequency_hz: f64,
+) -> (Params, Arc<ContactProfile>, ContactModel) {
+    let mut q = p.clone();
+    q.slider.mass_kg = mass_kg;
+    let op = OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz };
+    let profile = Arc::new(ContactProfile::new(&q, op));
+    let model = ContactModel::with_profile(&q, profile.clone(), 1);
+    (q, profile, model)
+}
+
 #[test]
 fn a_search_from_a_nearby_solution_finds_the_same_orbit_as_one_from_nothing() {
     // The hint (a nearby solution's start speed, layer state and slope) only shortens the
@@ -250,11 +266,7 @@ fn a_search_from_a_nearby_solution_finds_the_same_orbit_as_one_from_nothing() {
     let p = Params::prototype_sourced();
     for (mass_kg, preload_n, frequency_hz) in [(0.3, 16.0, 2200.0), (1.0, 5.0, 1500.0), (50.0, 10.0, 2200.0)]
     {
-        let mut q = p.clone();
-        q.slider.mass_kg = mass_kg;
-        let op = OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz };
-        let profile = Arc::new(ContactProfile::new(&q, op));
-        let model = ContactModel::with_profile(&q, profile.clone(), 1);
+        let (q, profile, model) = on_carriage(&p, mass_kg, preload_n, frequency_hz);
         let stall_n = model.stall_force_n();
         let mut nearby_p = q.clone();
         nearby_p.friction.mu_dynamic *= 1.05;
@@ -286,11 +298,7 @@ fn one_secant_step_from_a_nearby_orbit_gives_its_speed_difference() {
     let mut taken = 0;
     for (mass_kg, preload_n, frequency_hz) in [(0.3, 16.0, 2200.0), (1.0, 16.0, 1500.0), (5.0, 10.0, 2200.0)]
     {
-        let mut q = p.clone();
-        q.slider.mass_kg = mass_kg;
-        let op = OperatingPoint { preload_n, voltage_v: 100.0, frequency_hz };
-        let profile = Arc::new(ContactProfile::new(&q, op));
-        let model = ContactModel::with_profile(&q, profile.clone(), 1);
+        let (q, profile, model) = on_carriage(&p, mass_kg, preload_n, frequency_hz);
         let stall_n = model.stall_force_n();
         for (k, share) in [0.0, 0.4, 0.7].into_iter().enumerate() {
             let load_n = share * stall_n;
