@@ -227,8 +227,8 @@ fn test_candidates(
                 let (m1, f1) = match starts.first() {
                     // Not paying its way (ΔBIC below the threshold) from where the closed form
                     // led it: the closed form may have led the effect astray, so it is fitted
-                    // from zero strength on the contact model's own slopes too and the better
-                    // kept. On the 0.3 kg carriage the closed form put a preload knee above every
+                    // again anchored at zero strength, on the contact model's own slopes, its
+                    // surrogate from every candidate start, and the better kept. On the 0.3 kg carriage the closed form put a preload knee above every
                     // measured preload, where the contact model's slopes in the effect are zero;
                     // the base factors' own gain there made that fit look better than none.
                     Some(zero) if !pays(&f1) && zero[zero.len() - k..] != cheap[cheap.len() - k..] => {
