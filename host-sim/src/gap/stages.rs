@@ -214,10 +214,8 @@ fn test_candidates(
             let f = lm_fit(&m, data, &all, &starts, EFFECT_ITERATIONS);
             let cheap = f.x.clone();
             let k = effect.fit_params().len();
-            let pays = |f: &Fit| {
-                (state.fit.ssr - f.ssr) / (state.s * state.s) - k as f64 * (data.len() as f64).ln()
-                    >= opts.min_delta_bic
-            };
+            let pays =
+                |f: &Fit| delta_bic(state.fit.ssr, f.ssr, state.s, k, data.len()) >= opts.min_delta_bic;
             // On a contact base that fit moved the effect the way the closed form does; one
             // anchor at its end point refits it on the contact model's own slopes, and the
             // likelihood ratio is between the contact model's sums of squares.
@@ -228,9 +226,10 @@ fn test_candidates(
                     // Not paying its way (ΔBIC below the threshold) from where the closed form
                     // led it: the closed form may have led the effect astray, so it is fitted
                     // again anchored at zero strength, on the contact model's own slopes, its
-                    // surrogate from every candidate start, and the better kept. On the 0.3 kg carriage the closed form put a preload knee above every
-                    // measured preload, where the contact model's slopes in the effect are zero;
-                    // the base factors' own gain there made that fit look better than none.
+                    // surrogate from every candidate start, and the better kept. On the 0.3 kg
+                    // carriage the closed form put a preload knee above every measured preload,
+                    // where the contact model's slopes in the effect are zero; the base factors'
+                    // own gain there made that fit look better than none.
                     Some(zero) if !pays(&f1) && zero[zero.len() - k..] != cheap[cheap.len() - k..] => {
                         let (m0, f0) =
                             fit_anchored(&m, data, &all, &starts, EFFECT_ITERATIONS, CANDIDATE_ANCHORS, true);
@@ -315,6 +314,12 @@ fn test_candidates(
     cands
 }
 
+/// ΔBIC of `k` parameters that lower the sum of squares from `ssr_without` to `ssr_with` on `n`
+/// rows with noise scale `s`: the likelihood ratio less the parameters' price.
+fn delta_bic(ssr_without: f64, ssr_with: f64, s: f64, k: usize, n: usize) -> f64 {
+    (ssr_without - ssr_with) / (s * s) - k as f64 * (n as f64).ln()
+}
+
 /// A point a leading candidate's refinement starts from.
 type RefineFrom = Vec<f64>;
 
@@ -349,7 +354,6 @@ fn candidate(
 ) -> Candidate {
     let all = all_rows(data);
     let n = data.len();
-    let k = effect.fit_params().len() as f64;
     let lr = (state.fit.ssr - f.ssr) / (state.s * state.s);
     let cv_with = cv_rms(m, data, &f.x, opts.folds);
     let pred = m.predict(&f.x, data, &all);
@@ -362,7 +366,7 @@ fn candidate(
         score,
         score_rank: 0,
         lr,
-        delta_bic: lr - k * (n as f64).ln(),
+        delta_bic: delta_bic(state.fit.ssr, f.ssr, state.s, effect.fit_params().len(), n),
         cv_improvement: 1.0 - cv_with / cv_without.max(1e-300),
         gap: data.gap(&pred),
         consistency: ratio(f, n, m.n_params(), state.s),
@@ -444,8 +448,7 @@ fn retest_earlier(
                 continue;
             }
             let (reduced, f) = refits.without(&model, &fit, &[e], data);
-            let k = e.fit_params().len() as f64;
-            let kept = (f.ssr - fit.ssr) / (s * s) - k * (n as f64).ln();
+            let kept = delta_bic(f.ssr, fit.ssr, s, e.fit_params().len(), n);
             if kept < opts.min_delta_bic {
                 removed.push(Removed { name: e.to_string(), round, delta_bic_kept: kept });
                 model = reduced;

@@ -402,6 +402,12 @@ fn advance(
     advance(x, lvl + 1, t, force, pressing, h) + advance(x, lvl + 1, t, force, pressing, h)
 }
 
+/// Whether a secant's slope of the excess stays on the branch of the period map a hint's slope
+/// was taken on: within a factor of two of it (the map jumps where friction weakens with speed).
+fn same_branch(slope: f64, hint_slope: f64) -> bool {
+    slope <= 0.5 * hint_slope && slope >= 2.0 * hint_slope
+}
+
 /// cos φ at the ends of a period's fine steps (φ from −π), computed once: a model is built for
 /// every row the gap workflow evaluates, and the cosines were a fifth of an orbit's time.
 fn cos_ends() -> &'static [f64] {
@@ -673,7 +679,7 @@ impl ContactModel {
                 let (e1, o1) = excess(x1);
                 seen(x1, e1);
                 let s1 = (e1 - e0) / (x1 - x0);
-                if !(s1 <= 0.5 * h.slope && s1 >= 2.0 * h.slope) {
+                if !same_branch(s1, h.slope) {
                     // Near the root the secant's slope is the period map's roughness, not a
                     // jump to another branch: a point whose excess puts it within the
                     // tolerance of the root by either slope is an orbit all the same.
@@ -802,8 +808,7 @@ impl ContactModel {
         let (end1, mean1, _, _) = self.period(x1, layer, load_n);
         let e1 = end1 - x1;
         let s1 = (e1 - e0) / (x1 - x0);
-        // The same branch of the period map as the hint's (see `orbit_near`).
-        if !(s1 <= 0.5 * hint.slope && s1 >= 2.0 * hint.slope) {
+        if !same_branch(s1, hint.slope) {
             return None;
         }
         let root = x1 - e1 / s1;
