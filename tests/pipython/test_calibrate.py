@@ -47,7 +47,7 @@ from pipython.pidevice.interfaces.pisocket import PISocket
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, HERE)
-from test_pipython import quiet_double_close, start_server  # noqa: E402
+from test_pipython import quiet_double_close, start_server, stop_server  # noqa: E402
 
 FIRMWARE = os.path.join(ROOT, "host-sim", "params", "prototype.toml")
 TARGET_MM = 1.0
@@ -82,14 +82,6 @@ def set_param(text, section, key, value):
 def serve(binary, truth_file, load):
     return start_server(binary, "--params", truth_file, "--firmware-params", FIRMWARE, "--load-n", load,
                         duration_s=300)
-
-
-def stop(proc):
-    proc.terminate()
-    try:
-        proc.wait(timeout=5)
-    except subprocess.TimeoutExpired:
-        proc.kill()
 
 
 def run(binary, *args):
@@ -152,7 +144,7 @@ def calibrate_pays_off(binary, name, workdir):
                 "--frequencies-hz", "1200,1700,2200", "--directions", "1,-1" if load == "0" else "1",
                 "--load-n", load, "--append", "--out", measured)
         finally:
-            stop(proc)
+            stop_server(proc)
     gap_dir = os.path.join(workdir, f"{name}-gap")
     gap = json.loads(run(binary, "--params", FIRMWARE, "gap", "--measured", measured, "--out", gap_dir,
                          "--json"))
@@ -179,7 +171,7 @@ def calibrate_pays_off(binary, name, workdir):
             recorded_move(pidevice, 0.0)
             after, _, _ = out_and_back(pidevice)
     finally:
-        stop(proc)
+        stop_server(proc)
     print(f"{name}: uploaded {uploaded}; not uploaded {cal['not_uploaded']}")
     print(f"{name}: peak following error of the recorded 1 mm moves (mean of {MOVES}) "
           f"{before:.0f} -> {after:.0f} nm ({points} points every {period_s * 1e3:.1f} ms)")

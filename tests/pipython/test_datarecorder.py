@@ -33,7 +33,7 @@ from pipython.pidevice.interfaces.pisocket import PISocket
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, HERE)
-from test_pipython import quiet_double_close, start_server  # noqa: E402
+from test_pipython import quiet_double_close, start_server, stop_server  # noqa: E402
 
 COUNT_MM = 50e-6  # one encoder count
 TARGET_MM = 1.0
@@ -105,11 +105,7 @@ def main():
             assert abs(back_actual[-1] - pidevice.qPOS("1")["1"]) <= COUNT_MM + 1e-9, back_actual[-1]
             print(f"default trigger (2): {depth} points from {back_actual[0]} to {back_actual[-1]} mm")
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        stop_server(proc)
 
     sample_s = RATE * 1e-4
     print("header:", dict(header))

@@ -35,6 +35,15 @@ def start_server(binary, *extra, duration_s=110):
     return proc, port
 
 
+def stop_server(proc):
+    """Stops a `start_server` process: asked first, killed if it does not end within 5 s."""
+    proc.terminate()
+    try:
+        proc.wait(timeout=5)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+
+
 def quiet_double_close(unraisable):
     """PIPython 2.11 closes its socket twice (context exit, then __del__); the second close raises
     EBADF inside __del__. Not ours to fix: keep it out of the CI log, report anything else."""
@@ -101,11 +110,7 @@ def main():
             assert 0.1 < stopped < 0.6, stopped
             print(f"STP: stopped at {stopped} mm on the way from 0.1 to 0.6 mm")
     finally:
-        proc.terminate()
-        try:
-            proc.wait(timeout=5)
-        except subprocess.TimeoutExpired:
-            proc.kill()
+        stop_server(proc)
     print(f"PIPython test passed in {time.monotonic() - t0:.1f} s")
 
 
