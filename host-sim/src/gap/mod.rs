@@ -112,6 +112,9 @@ pub struct Candidate {
     /// Residual structure of this refit along every condition (its signature ones flagged).
     pub structure: Vec<AxisStructure>,
     pub params: Vec<NamedParam>,
+    /// Sum of squares of its refit (weighted residuals).
+    #[serde(skip)]
+    pub ssr: f64,
     #[serde(skip)]
     pub fit_x: Vec<f64>,
     #[serde(skip)]
