@@ -287,10 +287,10 @@ fn test_candidates(
         // values that lost after their one anchor move, the one that got lowest. One move from
         // there need not tell the deeper valley either: on 0.3 kg with a hidden Stribeck rise a
         // calibration that took the rise up as μ 2.1× (a path chosen by a last-bit change of the
-        // orbit searches) left the rise's fit from the file's values
-        // at 1.9× the sum of squares of the μ valley after one move (its rise already at 1.41
-        // for 1.5) and outside the leading two; nothing was named (gap 0.31 → 0.32). Followed
-        // to its end, the rise is named (gap 0.31 → 0.038).
+        // orbit searches) left the rise's fit from the file's values at 1.9× the sum of squares
+        // of the μ valley after one move (its rise already at 1.41 for 1.5) and outside the
+        // leading two; nothing was named (gap 0.31 → 0.32). Followed to its end, the rise is
+        // named (gap 0.31 → 0.038).
         let alternate = refine_from
             .iter()
             .enumerate()
@@ -563,18 +563,18 @@ pub(super) fn decide_tiers(
             // found better base values) and 1.00 on its own; it was left a partial candidate
             // and the gap stayed at 39 % of before (bit-level changes of the model chose that
             // path or the one that named it).
-            let of_base = |excess_left: f64| {
+            let of_base = |removed: f64| {
                 if base_excess > 0.0 {
-                    ((base_excess - excess_left) / base_excess).clamp(0.0, 1.0)
+                    (removed / base_excess).clamp(0.0, 1.0)
                 } else {
                     0.0
                 }
             };
+            let with_others = of_base(excess_without - full_excess);
             let alone = candidates
                 .iter()
                 .find(|c| c.round == 1 && c.effect == e)
-                .map_or(0.0, |c| of_base(excess_of(c.ssr, BASE_PARAMS + e.fit_params().len())));
-            let with_others = of_base(base_excess - (excess_without - full_excess));
+                .map_or(0.0, |c| of_base(base_excess - excess_of(c.ssr, BASE_PARAMS + e.fit_params().len())));
             let tier = tier_of(share, t.named, with_others, alone);
             Verdict {
                 effect: e.to_string(),
