@@ -19,7 +19,8 @@
 
 use super::fit::{fit as lm_fit, Data, Fit, Model};
 pub use super::surrogate::{closed_params, new_anchor, wants_contact, Anchor, ProfileCache};
-use crate::motor::effects::model_speed_m_s;
+use crate::motor::effects::{model_speed_m_s, Condition};
+use crate::motor::params::Params;
 use crate::motor::steady_contact::OrbitStart;
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -62,9 +63,30 @@ pub const ANCHOR_TOLERANCE: f64 = 1e-3;
 /// stopped at 3.6 kHz, gap 48 % of before); with 5 % it reaches 2.9 kHz (gap 22 % of before).
 pub const SLOPE_STEP: f64 = 0.05;
 
-/// `v_contact − v_closed` of `model` at parameters `x` for every data row (in parallel): one
-/// contact-model evaluation of each row, its orbit searched near `hints` (per row, None: none).
-/// Returns the differences and where each row's orbit starts.
+/// `v_contact − v_closed` of `model` at parameters `x` for every data row (in parallel), the
+/// contact model's speed of row `i` from `speed(cache, p, condition, i)` with whatever it says
+/// besides.
+fn minus_closed<T: Send>(
+    model: &Model,
+    cache: &ProfileCache,
+    x: &[f64],
+    data: &Data,
+    speed: impl Fn(&ProfileCache, &Params, &Condition, usize) -> (f64, T) + Sync,
+) -> Vec<(f64, T)> {
+    let p = model.params_at(x);
+    let q = closed_params(&p);
+    data.conds
+        .par_iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let (v, besides) = speed(cache, &p, c, i);
+            (v - model_speed_m_s(&q, c), besides)
+        })
+        .collect()
+}
+
+/// The differences at `x`: one contact-model evaluation of each row, its orbit searched near
+/// `hints` (per row, None: none). Returns the differences and where each row's orbit starts.
 fn differences(
     model: &Model,
     cache: &ProfileCache,
@@ -72,22 +94,15 @@ fn differences(
     data: &Data,
     hints: &[Option<OrbitStart>],
 ) -> (Vec<f64>, Vec<Option<OrbitStart>>) {
-    let p = model.params_at(x);
-    let q = closed_params(&p);
-    data.conds
-        .par_iter()
-        .enumerate()
-        .map(|(i, c)| {
-            let hint = hints.get(i).copied().flatten();
-            let (v, start) = cache.speed_near(&p, c, hint);
-            (v - model_speed_m_s(&q, c), start)
-        })
-        .unzip()
+    minus_closed(model, cache, x, data, |cache, p, c, i| {
+        cache.speed_near(p, c, hints.get(i).copied().flatten())
+    })
+    .into_iter()
+    .unzip()
 }
 
-/// `v_contact − v_closed` of `model` at `x`, each row's orbit after one secant step from its
-/// orbit `starts` at a point a slope step away (`ProfileCache::speed_for_slope`): a forward
-/// difference's other end.
+/// The differences at `x`, each row's orbit after one secant step from its orbit `starts` at a
+/// point a slope step away (`ProfileCache::speed_for_slope`): a forward difference's other end.
 fn slope_ends(
     model: &Model,
     cache: &ProfileCache,
@@ -95,13 +110,12 @@ fn slope_ends(
     data: &Data,
     starts: &[Option<OrbitStart>],
 ) -> Vec<f64> {
-    let p = model.params_at(x);
-    let q = closed_params(&p);
-    data.conds
-        .par_iter()
-        .enumerate()
-        .map(|(i, c)| cache.speed_for_slope(&p, c, starts.get(i).copied().flatten()) - model_speed_m_s(&q, c))
-        .collect()
+    minus_closed(model, cache, x, data, |cache, p, c, i| {
+        (cache.speed_for_slope(p, c, starts.get(i).copied().flatten()), ())
+    })
+    .into_iter()
+    .map(|(d, ())| d)
+    .collect()
 }
 
 /// The differences at an anchor's point and where each row's orbit starts there.

@@ -204,8 +204,7 @@ fn test_candidates(
     progress(&label, 0, todo.len());
     let done = std::sync::atomic::AtomicUsize::new(0);
     let cv_without = cv_rms(&state.model, data, &state.fit.x, opts.folds);
-    type Refine = (Vec<RefineFrom>, Option<(f64, RefineFrom)>);
-    let (mut cands, refine_from): (Vec<Candidate>, Vec<Refine>) = todo
+    let (mut cands, refine_from): (Vec<Candidate>, Vec<RefineStarts>) = todo
         .par_iter()
         .map(|&effect| {
             let sc = score(state, effect, data);
@@ -258,16 +257,16 @@ fn test_candidates(
                             fit_anchored(&m, data, &all, &[x], EFFECT_ITERATIONS, CANDIDATE_ANCHORS, false);
                         if f2.ssr < f1.ssr {
                             let from = f2.x.clone();
-                            (m2, f2, (vec![surrogate_path, from], None))
+                            (m2, f2, RefineStarts { leading: vec![surrogate_path, from], other_valley: None })
                         } else {
-                            let alternate = Some((f2.ssr, f2.x));
-                            (m1, f1, (vec![surrogate_path], alternate))
+                            let other_valley = Some((f2.ssr, f2.x));
+                            (m1, f1, RefineStarts { leading: vec![surrogate_path], other_valley })
                         }
                     }
-                    None => (m1, f1, (vec![surrogate_path], None)),
+                    None => (m1, f1, RefineStarts { leading: vec![surrogate_path], other_valley: None }),
                 }
             } else {
-                (m, f, (vec![cheap], None))
+                (m, f, RefineStarts { leading: vec![cheap], other_valley: None })
             };
             let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(&label, d, todo.len());
@@ -282,7 +281,7 @@ fn test_candidates(
         by_lr.sort_by(|&a, &b| cands[b].lr.total_cmp(&cands[a].lr));
         let lead: Vec<usize> = by_lr.into_iter().take(LEADING_CANDIDATES).collect();
         let mut runs: Vec<(usize, &RefineFrom)> =
-            lead.iter().flat_map(|&i| refine_from[i].0.iter().map(move |start| (i, start))).collect();
+            lead.iter().flat_map(|&i| refine_from[i].leading.iter().map(move |start| (i, start))).collect();
         // The most promising other valley is followed too: of the fits from the file's base
         // values that lost after their one anchor move, the one that got lowest. One move from
         // there need not tell the deeper valley either: on 0.3 kg with a hidden Stribeck rise a
@@ -294,7 +293,7 @@ fn test_candidates(
         let alternate = refine_from
             .iter()
             .enumerate()
-            .filter_map(|(i, r)| r.1.as_ref().map(|(ssr, x)| (i, *ssr, x)))
+            .filter_map(|(i, r)| r.other_valley.as_ref().map(|(ssr, x)| (i, *ssr, x)))
             .min_by(|a, b| a.1.total_cmp(&b.1));
         if let Some((i, _, x)) = alternate {
             runs.push((i, x));
@@ -340,6 +339,15 @@ fn delta_bic(ssr_without: f64, ssr_with: f64, s: f64, k: usize, n: usize) -> f64
 
 /// A point a leading candidate's refinement starts from.
 type RefineFrom = Vec<f64>;
+
+/// Where a candidate's fits to the end would start, from its one-move fits on a contact base:
+/// `leading`, if it is among the leading candidates (the closed form's path, and the fit from
+/// the file's base values where that won); `other_valley`, the fit from the file's values
+/// where it lost, with its sum of squares (the lowest of those is followed too).
+struct RefineStarts {
+    leading: Vec<RefineFrom>,
+    other_valley: Option<(f64, RefineFrom)>,
+}
 
 /// `start` with the base factors at the parameter file's values (0: the factors are logs of
 /// the file's values); the effects' values kept.

@@ -46,12 +46,6 @@ impl ProfileCache {
         }
     }
 
-    /// The contact model's steady speed along the commanded sense (m/s); the closed form's where
-    /// the carriage has no periodic motion within reach (a load far past the stall).
-    pub fn speed_m_s(&self, p: &Params, c: &Condition) -> f64 {
-        self.speed_near(p, c, None).0
-    }
-
     fn model(&self, p: &Params, c: &Condition) -> ContactModel {
         ContactModel::with_profile(p, self.profile(p, c), c.direction).with_root_tolerance(ORBIT_TOLERANCE)
     }
@@ -65,9 +59,11 @@ impl ProfileCache {
             .unwrap_or_else(|| closed_speed_m_s(p, c))
     }
 
-    /// [`Self::speed_m_s`] with the orbit searched first near `hint` (where the same row's orbit
-    /// starts at nearby parameters); returns the speed and where the orbit starts. The hint only
-    /// shortens the search: the orbit is the same to its tolerance.
+    /// The contact model's steady speed along the commanded sense (m/s), the closed form's where
+    /// the carriage has no periodic motion within reach (a load far past the stall), with the
+    /// orbit searched first near `hint` (where the same row's orbit starts at nearby
+    /// parameters); returns the speed and where the orbit starts. The hint only shortens the
+    /// search: the orbit is the same to its tolerance.
     pub fn speed_near(
         &self,
         p: &Params,
