@@ -23,6 +23,7 @@ use crate::motor::effects::{model_speed_m_s, Condition};
 use crate::motor::params::Params;
 use crate::motor::steady_contact::OrbitStart;
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::sync::Arc;
 
 /// Anchor moves at most per fit of the workflow's model: each costs `1 + n_params` contact-model evaluations of every
@@ -64,23 +65,62 @@ pub const ANCHOR_TOLERANCE: f64 = 1e-3;
 pub const SLOPE_STEP: f64 = 0.05;
 
 /// `v_contact − v_closed` of `model` at parameters `x` for every data row (in parallel), the
-/// contact model's speed of row `i` from `speed(cache, p, condition, i)` with whatever it says
-/// besides.
-fn minus_closed<T: Send>(
+/// contact model's speed of row `i` from `speed(cache, p, condition, hint)` with whatever it
+/// says besides, its orbit searched near `hints[i]`. A row that repeats an earlier one (the
+/// same condition and foot speed, as both senses of a model without `assembly_asymmetry` are,
+/// and the same hint) takes that row's answer: the same evaluation, not made twice.
+fn minus_closed<T: Send + Clone>(
     model: &Model,
     cache: &ProfileCache,
     x: &[f64],
     data: &Data,
-    speed: impl Fn(&ProfileCache, &Params, &Condition, usize) -> (f64, T) + Sync,
+    hints: &[Option<OrbitStart>],
+    speed: impl Fn(&ProfileCache, &Params, &Condition, Option<OrbitStart>) -> (f64, T) + Sync,
 ) -> Vec<(f64, T)> {
     let p = model.params_at(x);
     let q = closed_params(&p);
-    data.conds
+    let hint = |i: usize| hints.get(i).copied().flatten();
+    let first = first_alike(&p, data, &hint);
+    let unique: Vec<usize> = (0..data.len()).filter(|&i| first[i] == i).collect();
+    let solved: Vec<(f64, T)> = unique
         .par_iter()
-        .enumerate()
-        .map(|(i, c)| {
-            let (v, besides) = speed(cache, &p, c, i);
+        .map(|&i| {
+            let c = &data.conds[i];
+            let (v, besides) = speed(cache, &p, c, hint(i));
             (v - model_speed_m_s(&q, c), besides)
+        })
+        .collect();
+    let mut slot = vec![0; data.len()];
+    for (k, &i) in unique.iter().enumerate() {
+        slot[i] = k;
+    }
+    first.iter().map(|&j| solved[slot[j]].clone()).collect()
+}
+
+/// For each row, the first row whose evaluation at `p` is the same: the same preload, voltage,
+/// frequency and load, the same foot speed factor of its sense (the only way the sense enters
+/// either model), and the same orbit hint.
+fn first_alike(p: &Params, data: &Data, hint: &impl Fn(usize) -> Option<OrbitStart>) -> Vec<usize> {
+    let mut seen: HashMap<[u64; 5], Vec<usize>> = HashMap::new();
+    (0..data.len())
+        .map(|i| {
+            let c = &data.conds[i];
+            let key = [
+                c.preload_n,
+                c.voltage_v,
+                c.frequency_hz,
+                c.load_n,
+                p.effects.tangential_factor(c.direction),
+            ]
+            .map(f64::to_bits);
+            let rows = seen.entry(key).or_default();
+            match rows.iter().find(|&&j| hint(j) == hint(i)) {
+                Some(&j) => j,
+                None => {
+                    rows.push(i);
+                    i
+                }
+            }
         })
         .collect()
 }
@@ -94,11 +134,9 @@ fn differences(
     data: &Data,
     hints: &[Option<OrbitStart>],
 ) -> (Vec<f64>, Vec<Option<OrbitStart>>) {
-    minus_closed(model, cache, x, data, |cache, p, c, i| {
-        cache.speed_near(p, c, hints.get(i).copied().flatten())
-    })
-    .into_iter()
-    .unzip()
+    minus_closed(model, cache, x, data, hints, |cache, p, c, hint| cache.speed_near(p, c, hint))
+        .into_iter()
+        .unzip()
 }
 
 /// The differences at `x`, each row's orbit after one secant step from its orbit `starts` at a
@@ -110,12 +148,10 @@ fn slope_ends(
     data: &Data,
     starts: &[Option<OrbitStart>],
 ) -> Vec<f64> {
-    minus_closed(model, cache, x, data, |cache, p, c, i| {
-        (cache.speed_for_slope(p, c, starts.get(i).copied().flatten()), ())
-    })
-    .into_iter()
-    .map(|(d, ())| d)
-    .collect()
+    minus_closed(model, cache, x, data, starts, |cache, p, c, start| (cache.speed_for_slope(p, c, start), ()))
+        .into_iter()
+        .map(|(d, ())| d)
+        .collect()
 }
 
 /// The differences at an anchor's point and where each row's orbit starts there.

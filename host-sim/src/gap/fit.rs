@@ -270,22 +270,36 @@ impl Model {
         // The closed form's model once per operating point (`model_speed_m_s` builds it for each
         // row; it does not depend on the load), and the rows in parallel: the fits call this for
         // every Jacobian column, and the closed form is a fifth of a contact base's time, much
-        // of it outside the parallel candidate tests.
-        let mut points: Vec<usize> = rows.iter().map(|&i| data.same_point[i]).collect();
+        // of it outside the parallel candidate tests. A row whose closed-form speed is another's
+        // ([`twins`]) takes it from that row.
+        let twin = twins(&q, data, rows, near);
+        let lead: Vec<usize> = (0..rows.len()).filter(|&k| twin[k] == k).collect();
+        let mut points: Vec<usize> = lead.iter().map(|&k| data.same_point[rows[k]]).collect();
         points.sort_unstable();
         points.dedup();
         let models: Vec<EffectModel> =
             points.par_iter().map(|&i| EffectModel::new(&q, &data.conds[i])).collect();
-        rows.par_iter()
-            .enumerate()
-            .map(|(k, &i)| {
+        let solved: Vec<(f64, f64)> = lead
+            .par_iter()
+            .map(|&k| {
+                let i = rows[k];
                 let model = &models[points.partition_point(|&j| j < data.same_point[i])];
                 let load_n = data.conds[i].load_n;
                 let constant = match near.and_then(|n| n.get(k)) {
                     Some(&v) => model.constant_speed_near_m_s(load_n, v),
                     None => model.constant_speed_at_load_m_s(load_n),
                 };
-                let closed = model.speed_from_constant_m_s(load_n, constant);
+                (model.speed_from_constant_m_s(load_n, constant), constant)
+            })
+            .collect();
+        let mut slot = vec![0; rows.len()];
+        for (n, &k) in lead.iter().enumerate() {
+            slot[k] = n;
+        }
+        rows.iter()
+            .enumerate()
+            .map(|(k, &i)| {
+                let (closed, constant) = solved[slot[twin[k]]];
                 (self.anchor.as_ref().map_or(closed, |a| closed + a.correction_m_s(i, x)), constant)
             })
             .unzip()
@@ -324,6 +338,31 @@ impl Model {
         }
         j
     }
+}
+
+/// For each of `rows` (by position), the first of them whose closed-form speed under `q` is the
+/// same computation: the same preload, voltage, frequency and load, the same foot speed factor
+/// of its sense (the only way the sense enters the closed form: both senses of a model without
+/// `assembly_asymmetry` are one), and the same start of the search (`near`).
+fn twins(q: &Params, data: &Data, rows: &[usize], near: Option<&[f64]>) -> Vec<usize> {
+    let mut seen: std::collections::HashMap<[u64; 6], usize> = std::collections::HashMap::new();
+    rows.iter()
+        .enumerate()
+        .map(|(k, &i)| {
+            let c = &data.conds[i];
+            let start = near.and_then(|n| n.get(k)).copied().unwrap_or(f64::NAN);
+            let key = [
+                c.preload_n,
+                c.voltage_v,
+                c.frequency_hz,
+                c.load_n,
+                q.effects.tangential_factor(c.direction),
+                start,
+            ]
+            .map(f64::to_bits);
+            *seen.entry(key).or_insert(k)
+        })
+        .collect()
 }
 
 /// Levenberg–Marquardt iterations of a fit (on a contact base, of each anchor's surrogate fit):
