@@ -17,13 +17,12 @@
 //! `surrogate.rs` with the [`Anchor`] the fits read); each orbit search starts where the same
 //! row's orbit was at the model's anchor.
 
-use super::fit::{fit as lm_fit, Data, Fit, Model};
+use super::fit::{first_alike, fit as lm_fit, Data, Fit, Model};
 pub use super::surrogate::{closed_params, new_anchor, wants_contact, Anchor, ProfileCache};
 use crate::motor::effects::{model_speed_m_s, Condition};
 use crate::motor::params::Params;
 use crate::motor::steady_contact::OrbitStart;
 use rayon::prelude::*;
-use std::collections::HashMap;
 use std::sync::Arc;
 
 /// Anchor moves at most per fit of the workflow's model: each costs `1 + n_params` contact-model evaluations of every
@@ -80,7 +79,8 @@ fn minus_closed<T: Send + Clone>(
     let p = model.params_at(x);
     let q = closed_params(&p);
     let hint = |i: usize| hints.get(i).copied().flatten();
-    let first = first_alike(&p, data, &hint);
+    let all: Vec<usize> = (0..data.len()).collect();
+    let first = first_alike(&p, data, &all, |j, i| hint(j) == hint(i));
     let unique: Vec<usize> = (0..data.len()).filter(|&i| first[i] == i).collect();
     let solved: Vec<(f64, T)> = unique
         .par_iter()
@@ -95,34 +95,6 @@ fn minus_closed<T: Send + Clone>(
         slot[i] = k;
     }
     first.iter().map(|&j| solved[slot[j]].clone()).collect()
-}
-
-/// For each row, the first row whose evaluation at `p` is the same: the same preload, voltage,
-/// frequency and load, the same foot speed factor of its sense (the only way the sense enters
-/// either model), and the same orbit hint.
-fn first_alike(p: &Params, data: &Data, hint: &impl Fn(usize) -> Option<OrbitStart>) -> Vec<usize> {
-    let mut seen: HashMap<[u64; 5], Vec<usize>> = HashMap::new();
-    (0..data.len())
-        .map(|i| {
-            let c = &data.conds[i];
-            let key = [
-                c.preload_n,
-                c.voltage_v,
-                c.frequency_hz,
-                c.load_n,
-                p.effects.tangential_factor(c.direction),
-            ]
-            .map(f64::to_bits);
-            let rows = seen.entry(key).or_default();
-            match rows.iter().find(|&&j| hint(j) == hint(i)) {
-                Some(&j) => j,
-                None => {
-                    rows.push(i);
-                    i
-                }
-            }
-        })
-        .collect()
 }
 
 /// The differences at `x`: one contact-model evaluation of each row, its orbit searched near

@@ -271,8 +271,9 @@ impl Model {
         // row; it does not depend on the load), and the rows in parallel: the fits call this for
         // every Jacobian column, and the closed form is a fifth of a contact base's time, much
         // of it outside the parallel candidate tests. A row whose closed-form speed is another's
-        // ([`twins`]) takes it from that row.
-        let twin = twins(&q, data, rows, near);
+        // ([`first_alike`], searched from the same start) takes it from that row.
+        let start = |k: usize| near.and_then(|n| n.get(k)).map(|v| v.to_bits());
+        let twin = first_alike(&q, data, rows, |j, k| start(j) == start(k));
         let lead: Vec<usize> = (0..rows.len()).filter(|&k| twin[k] == k).collect();
         let mut points: Vec<usize> = lead.iter().map(|&k| data.same_point[rows[k]]).collect();
         points.sort_unstable();
@@ -340,27 +341,38 @@ impl Model {
     }
 }
 
-/// For each of `rows` (by position), the first of them whose closed-form speed under `q` is the
-/// same computation: the same preload, voltage, frequency and load, the same foot speed factor
-/// of its sense (the only way the sense enters the closed form: both senses of a model without
-/// `assembly_asymmetry` are one), and the same start of the search (`near`).
-fn twins(q: &Params, data: &Data, rows: &[usize], near: Option<&[f64]>) -> Vec<usize> {
-    let mut seen: std::collections::HashMap<[u64; 6], usize> = std::collections::HashMap::new();
+/// For each of `rows` (by position), the first position whose row is evaluated as this one is
+/// under `p`: the same preload, voltage, frequency and load, the same foot speed factor of its
+/// sense (the only way the sense enters the closed form and the contact model: both senses of a
+/// model without `assembly_asymmetry` are one), and `same(first, this)` (the same start of the
+/// search, by position).
+pub(super) fn first_alike(
+    p: &Params,
+    data: &Data,
+    rows: &[usize],
+    same: impl Fn(usize, usize) -> bool,
+) -> Vec<usize> {
+    let mut seen: std::collections::HashMap<[u64; 5], Vec<usize>> = std::collections::HashMap::new();
     rows.iter()
         .enumerate()
         .map(|(k, &i)| {
             let c = &data.conds[i];
-            let start = near.and_then(|n| n.get(k)).copied().unwrap_or(f64::NAN);
             let key = [
                 c.preload_n,
                 c.voltage_v,
                 c.frequency_hz,
                 c.load_n,
-                q.effects.tangential_factor(c.direction),
-                start,
+                p.effects.tangential_factor(c.direction),
             ]
             .map(f64::to_bits);
-            *seen.entry(key).or_insert(k)
+            let alike = seen.entry(key).or_default();
+            match alike.iter().find(|&&j| same(j, k)) {
+                Some(&j) => j,
+                None => {
+                    alike.push(k);
+                    k
+                }
+            }
         })
         .collect()
 }
