@@ -162,7 +162,7 @@ def calibrate_pays_off(binary, name, workdir):
             before, points, period_s = out_and_back(pidevice)
         # The upload, over its own connection as a user's calibrate run would be.
         cal = json.loads(run(binary, "--params", os.path.join(gap_dir, "params-fitted.toml"), "calibrate",
-                             "--tcp", f"127.0.0.1:{port}", "--json"))
+                             "--tcp", f"127.0.0.1:{port}", "--json", "--tune", FIRMWARE))
         uploaded = {u["name"]: u["sent"] for u in cal["uploaded"]}
         with GCSDevice(gateway=PISocket(host="127.0.0.1", port=port)) as pidevice:
             # The same warm-up: the settings change made the controller forget what it had
@@ -172,7 +172,9 @@ def calibrate_pays_off(binary, name, workdir):
             after, _, _ = out_and_back(pidevice)
     finally:
         stop_server(proc)
-    print(f"{name}: uploaded {uploaded}; not uploaded {cal['not_uploaded']}")
+    tuned = cal["tuned"]
+    print(f"{name}: uploaded {uploaded}; not uploaded {cal['not_uploaded']}; lambda fitted "
+          f"{tuned['fitted_lambda']:.5f}, tuned on the fitted model {tuned['chosen_lambda']:.5f}")
     print(f"{name}: peak following error of the recorded 1 mm moves (mean of {MOVES}) "
           f"{before:.0f} -> {after:.0f} nm ({points} points every {period_s * 1e3:.1f} ms)")
     return before, after

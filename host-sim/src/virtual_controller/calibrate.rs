@@ -8,10 +8,12 @@
 //! workflow found it, the carriage's mass of the `slider_inertia` effect. They go in
 //! one `SPA` line, so the controller checks them as a whole and takes all or none; then `SPA?`
 //! reads them back. Effects the fixed-point model does not carry are listed as not uploaded.
+//! With `--tune`, λ is chosen first by simulating the board on the fitted model ([`super::tune`]).
 
 use crate::motor::effects::Effect;
 use crate::motor::params::Params;
 use crate::virtual_controller::gcs_client::GcsClient;
+use crate::virtual_controller::tune::{tune_lambda, TuneReport};
 use anyhow::{bail, Result};
 use serde::Serialize;
 use std::path::PathBuf;
@@ -28,6 +30,9 @@ pub struct CalibrateOptions {
     pub save: bool,
     /// Print one JSON object instead of the table.
     pub json: bool,
+    /// Choose λ by simulating the board on the fitted model first ([`super::tune`]): the file
+    /// the board's firmware was built for, and the board's preload (N).
+    pub tune: Option<(PathBuf, f64)>,
 }
 
 /// One uploaded parameter.
@@ -49,6 +54,9 @@ pub struct CalibrateReport {
     pub not_uploaded: Vec<String>,
     /// Whether `WPA` stored them.
     pub saved: bool,
+    /// What `--tune` found (λ uploaded instead of the fitted one).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tuned: Option<TuneReport>,
 }
 
 /// The effects the firmware's model carries (through the parameters below).
@@ -126,15 +134,53 @@ pub fn upload(gcs: &mut GcsClient, p: &Params, save: bool) -> Result<CalibrateRe
     if save {
         gcs.command("WPA")?;
     }
-    Ok(CalibrateReport { uploaded, not_uploaded: not_carried(p), saved: save })
+    Ok(CalibrateReport { uploaded, not_uploaded: not_carried(p), saved: save, tuned: None })
 }
 
 pub fn run(p: &Params, args: &CalibrateOptions) -> Result<()> {
+    // The link is checked before the tuning's minute of simulation and opened again after it.
+    drop(GcsClient::open(args.tcp.as_deref(), args.serial.as_deref(), args.baud)?);
+    let (p, tuned) = match &args.tune {
+        Some((firmware, preload_n)) => {
+            let progress = |done: usize, total: usize| {
+                if !args.json {
+                    eprint!("\rtuning λ on the fitted model: {done}/{total} simulated board runs");
+                }
+            };
+            let t = tune_lambda(p, firmware, *preload_n, &progress)?;
+            if !args.json {
+                eprintln!();
+            }
+            let mut q = p.clone();
+            q.stator.tangential_scale = t.chosen_lambda;
+            (q, Some(t))
+        }
+        None => (p.clone(), None),
+    };
     let mut gcs = GcsClient::open(args.tcp.as_deref(), args.serial.as_deref(), args.baud)?;
-    let report = upload(&mut gcs, p, args.save)?;
+    let mut report = upload(&mut gcs, &p, args.save)?;
+    report.tuned = tuned;
     if args.json {
         println!("{}", serde_json::to_string(&report)?);
         return Ok(());
+    }
+    if let Some(t) = &report.tuned {
+        println!(
+            "λ tuned on the fitted model at {} N: mean peak following error of the simulated board's \
+             moves out (0.5, 1, 2 mm; nm)",
+            t.preload_n
+        );
+        println!("{:>10} {:>10} {:>14}", "λ", "mean", "with next");
+        for g in &t.grid {
+            let mark = if g.lambda == t.chosen_lambda {
+                "  <- uploaded"
+            } else if g.lambda == t.fitted_lambda {
+                "  (fitted)"
+            } else {
+                ""
+            };
+            println!("{:>10.5} {:>10.0} {:>14.0}{mark}", g.lambda, g.mean_peak_nm, g.neighbourhood_nm);
+        }
     }
     println!("{:<8} {:<40} {:>14} {:>14}", "id", "parameter", "sent", "read back");
     for u in &report.uploaded {

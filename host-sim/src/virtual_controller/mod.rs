@@ -1,7 +1,9 @@
 //! The virtual controller: the simulated board behind PI's GCS over TCP or a pty (`serve`), a GCS
-//! client, the characterisation that drives a board through it, and the upload of a fitted model.
+//! client, the characterisation that drives a board through it, the upload of a fitted model, and
+//! the choice of λ for the board by simulating it on that model (`calibrate --tune`).
 pub mod calibrate;
 pub mod characterize;
 pub mod gcs_client;
 pub mod gcs_moves;
 pub mod serve;
+pub mod tune;
