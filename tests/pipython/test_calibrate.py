@@ -3,8 +3,8 @@
 A board whose motor is not what its firmware believes (`serve --params TRUTH --firmware-params
 host-sim/params/prototype.toml`) measures itself through GCS only (`host-sim characterize` under
 three hanging weights, 0, 0.3 and 0.6 N, each a restart of the board), the model-gap workflow
-fits the firmware's parameter file to what it measured (`host-sim gap`), and `host-sim calibrate`
-uploads the fit (`SPA`). Before and after, PIPython's `datarectools.Datarecorder` records the same
+fits the firmware's parameter file to what it measured (`host-sim gap`), and `host-sim calibrate
+--tune` uploads the fit (`SPA`), its λ chosen first by simulating the board on the fitted model. Before and after, PIPython's `datarectools.Datarecorder` records the same
 1 mm move (table 1 the commanded position, table 2 the position error, trigger: the move
 command) and the peak following error is read from the recorded error. The issue asks for it to
 be at most half of before. Measured on `mu_rail` (Nov 2026, each a full run: `serve` is paced to
