@@ -2,6 +2,7 @@
 //! client, the characterisation that drives a board through it, the upload of a fitted model, and
 //! the choice of λ for the board by simulating it on that model (`calibrate --tune`).
 pub mod calibrate;
+pub mod calibration;
 pub mod characterize;
 pub mod gcs_client;
 pub mod gcs_moves;

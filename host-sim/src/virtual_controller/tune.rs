@@ -11,7 +11,7 @@
 //! following error goes up. The fitted model is the stand-in: the board itself is not moved.
 
 use crate::motor::params::Params;
-use crate::virtual_controller::calibrate::calibration_values;
+use crate::virtual_controller::calibration::{calibration_values, spa_line};
 use crate::virtual_controller::serve::{ServeArgs, VirtualController};
 use anyhow::{anyhow, Context, Result};
 use piezo_drive::gcs::Reply;
@@ -138,10 +138,7 @@ fn board_peaks_nm(
         firmware_params: Some(firmware.to_path_buf()),
     };
     let mut board = VirtualController::new(motor, &args)?;
-    let upload = calibration_values(candidate).iter().fold(String::from("SPA"), |mut s, (id, _, v)| {
-        s.push_str(&format!(" 1 0x{id:X} {v}"));
-        s
-    });
+    let upload = spa_line(&calibration_values(candidate));
     let reply = send(&mut board, &format!("RON 1 0\nPOS 1 0\nSVO 1 1\n{upload}\nERR?\n"));
     if reply.trim() != "0" {
         return Err(anyhow!("the simulated board refused '{upload}': {}", reply.trim()));
