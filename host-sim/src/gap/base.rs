@@ -17,12 +17,11 @@
 //! `surrogate.rs` with the [`Anchor`] the fits read); each orbit search starts where the same
 //! row's orbit was at the model's anchor.
 
-use super::fit::{first_alike, fit as lm_fit, Data, Fit, Model};
+use super::fit::{first_alike, fit as lm_fit, solve_once, Data, Fit, Model};
 pub use super::surrogate::{closed_params, new_anchor, wants_contact, Anchor, ProfileCache};
 use crate::motor::effects::{model_speed_m_s, Condition};
 use crate::motor::params::Params;
 use crate::motor::steady_contact::OrbitStart;
-use rayon::prelude::*;
 use std::sync::Arc;
 
 /// Anchor moves at most per fit of the workflow's model: each costs `1 + n_params` contact-model evaluations of every
@@ -81,20 +80,11 @@ fn minus_closed<T: Send + Clone>(
     let hint = |i: usize| hints.get(i).copied().flatten();
     let all: Vec<usize> = (0..data.len()).collect();
     let first = first_alike(&p, data, &all, |j, i| hint(j) == hint(i));
-    let unique: Vec<usize> = (0..data.len()).filter(|&i| first[i] == i).collect();
-    let solved: Vec<(f64, T)> = unique
-        .par_iter()
-        .map(|&i| {
-            let c = &data.conds[i];
-            let (v, besides) = speed(cache, &p, c, hint(i));
-            (v - model_speed_m_s(&q, c), besides)
-        })
-        .collect();
-    let mut slot = vec![0; data.len()];
-    for (k, &i) in unique.iter().enumerate() {
-        slot[i] = k;
-    }
-    first.iter().map(|&j| solved[slot[j]].clone()).collect()
+    solve_once(&first, |i| {
+        let c = &data.conds[i];
+        let (v, besides) = speed(cache, &p, c, hint(i));
+        (v - model_speed_m_s(&q, c), besides)
+    })
 }
 
 /// The differences at `x`: one contact-model evaluation of each row, its orbit searched near

@@ -274,33 +274,25 @@ impl Model {
         // ([`first_alike`], searched from the same start) takes it from that row.
         let start = |k: usize| near.and_then(|n| n.get(k)).map(|v| v.to_bits());
         let twin = first_alike(&q, data, rows, |j, k| start(j) == start(k));
-        let lead: Vec<usize> = (0..rows.len()).filter(|&k| twin[k] == k).collect();
-        let mut points: Vec<usize> = lead.iter().map(|&k| data.same_point[rows[k]]).collect();
+        let mut points: Vec<usize> =
+            (0..rows.len()).filter(|&k| twin[k] == k).map(|k| data.same_point[rows[k]]).collect();
         points.sort_unstable();
         points.dedup();
         let models: Vec<EffectModel> =
             points.par_iter().map(|&i| EffectModel::new(&q, &data.conds[i])).collect();
-        let solved: Vec<(f64, f64)> = lead
-            .par_iter()
-            .map(|&k| {
-                let i = rows[k];
-                let model = &models[points.partition_point(|&j| j < data.same_point[i])];
-                let load_n = data.conds[i].load_n;
-                let constant = match near.and_then(|n| n.get(k)) {
-                    Some(&v) => model.constant_speed_near_m_s(load_n, v),
-                    None => model.constant_speed_at_load_m_s(load_n),
-                };
-                (model.speed_from_constant_m_s(load_n, constant), constant)
-            })
-            .collect();
-        let mut slot = vec![0; rows.len()];
-        for (n, &k) in lead.iter().enumerate() {
-            slot[k] = n;
-        }
+        let solved = solve_once(&twin, |k| {
+            let i = rows[k];
+            let model = &models[points.partition_point(|&j| j < data.same_point[i])];
+            let load_n = data.conds[i].load_n;
+            let constant = match near.and_then(|n| n.get(k)) {
+                Some(&v) => model.constant_speed_near_m_s(load_n, v),
+                None => model.constant_speed_at_load_m_s(load_n),
+            };
+            (model.speed_from_constant_m_s(load_n, constant), constant)
+        });
         rows.iter()
-            .enumerate()
-            .map(|(k, &i)| {
-                let (closed, constant) = solved[slot[twin[k]]];
+            .zip(solved)
+            .map(|(&i, (closed, constant))| {
                 (self.anchor.as_ref().map_or(closed, |a| closed + a.correction_m_s(i, x)), constant)
             })
             .unzip()
@@ -375,6 +367,18 @@ pub(super) fn first_alike(
             }
         })
         .collect()
+}
+
+/// `solve` at each position `first` names as its own first (in parallel), and each position
+/// given the answer of its first ([`first_alike`]): every distinct evaluation made once.
+pub(super) fn solve_once<T: Send + Clone>(first: &[usize], solve: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    let lead: Vec<usize> = (0..first.len()).filter(|&k| first[k] == k).collect();
+    let solved: Vec<T> = lead.par_iter().map(|&k| solve(k)).collect();
+    let mut slot = vec![0; first.len()];
+    for (n, &k) in lead.iter().enumerate() {
+        slot[k] = n;
+    }
+    first.iter().map(|&j| solved[slot[j]].clone()).collect()
 }
 
 /// Levenberg–Marquardt iterations of a fit (on a contact base, of each anchor's surrogate fit):
