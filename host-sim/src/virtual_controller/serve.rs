@@ -219,6 +219,14 @@ impl VirtualController {
         self.board.recorder.sample(&self.sil.controller);
     }
 
+    /// Feeds `text` through the protocol and returns the replies as text: for callers that drive
+    /// the simulated board directly (tests, `calibrate --tune`), not a link.
+    pub fn exchange(&mut self, text: &str) -> String {
+        let mut out = Reply::new();
+        self.feed(text.as_bytes(), &mut out);
+        String::from_utf8_lossy(&out).into_owned()
+    }
+
     /// Feeds received bytes through the protocol; replies are appended to `out` (which must
     /// have room for them all: tests only; a `DRR?` goes on only while it has room).
     pub fn feed(&mut self, bytes: &[u8], out: &mut Reply) {
@@ -487,12 +495,6 @@ mod tests {
         }
     }
 
-    fn send(vc: &mut VirtualController, text: &str) -> String {
-        let mut out = Reply::new();
-        vc.feed(text.as_bytes(), &mut out);
-        String::from_utf8_lossy(&out).into_owned()
-    }
-
     /// Runs the plant (not paced) until `done` or `max_s` of plant time.
     fn run_until(vc: &mut VirtualController, max_s: f64, done: impl Fn(&Sil) -> bool) -> bool {
         vc.sil.run_until(max_s, done)
@@ -506,19 +508,19 @@ mod tests {
     fn frf_finds_the_emulated_index_and_moves_land_on_target() {
         let p = Params::prototype();
         let mut vc = VirtualController::new(&p, &args()).unwrap();
-        assert_eq!(send(&mut vc, "RON 1 1\nFRF 1\nERR?\n"), "0\n");
+        assert_eq!(vc.exchange("RON 1 1\nFRF 1\nERR?\n"), "0\n");
         assert!(run_until(&mut vc, 1.0, |s| s.controller.state() != State::Referencing));
-        assert_eq!(send(&mut vc, "FRF? 1\nERR?\n"), "1=1\n0\n");
+        assert_eq!(vc.exchange("FRF? 1\nERR?\n"), "1=1\n0\n");
         // The index is where the plant's slider crossed −20 µm: the controller's zero now sits
         // there to within the distance covered in one control period at the search speed.
-        let pos_mm = number(&send(&mut vc, "POS?\n"));
+        let pos_mm = number(&vc.exchange("POS?\n"));
         let slider_um = vc.sil.plant.slider_position_m() * 1e6;
         let zero_um = slider_um - pos_mm * 1e3;
         assert!((zero_um - -20.0).abs() < 0.3, "zero at {zero_um} µm");
-        assert_eq!(send(&mut vc, "SVO 1 1\nMOV 1 0.05\nERR?\n"), "0\n");
+        assert_eq!(vc.exchange("SVO 1 1\nMOV 1 0.05\nERR?\n"), "0\n");
         assert!(run_until(&mut vc, 2.0, |s| s.controller.on_target()));
-        assert_eq!(send(&mut vc, "ONT?\n"), "1=1\n");
-        let pos_mm = number(&send(&mut vc, "POS?\n"));
+        assert_eq!(vc.exchange("ONT?\n"), "1=1\n");
+        let pos_mm = number(&vc.exchange("POS?\n"));
         assert!((pos_mm - 0.05).abs() <= 50e-6, "{pos_mm}");
         let true_mm = (vc.sil.plant.slider_position_m() * 1e6 - zero_um) * 1e-3;
         assert!((true_mm - 0.05).abs() < 0.4e-3, "plant at {true_mm} mm");
@@ -529,15 +531,15 @@ mod tests {
         let p = Params::prototype();
         for stop in ["STP\n", "HLT 1\n", "\x18"] {
             let mut vc = VirtualController::new(&p, &args()).unwrap();
-            assert_eq!(send(&mut vc, "RON 1 0\nSVO 1 1\nMOV 1 1\nERR?\n"), "0\n");
+            assert_eq!(vc.exchange("RON 1 0\nSVO 1 1\nMOV 1 1\nERR?\n"), "0\n");
             vc.sil.run_until(0.1, |_| false);
             let moving_mm_s = vc.sil.plant.slider_velocity_m_s() * 1e3;
             assert!(moving_mm_s > 1.0, "{moving_mm_s} mm/s");
-            assert_eq!(send(&mut vc, stop), "");
+            assert_eq!(vc.exchange(stop), "");
             let stopped = vc.sil.run_until(0.5, |s| s.controller.on_target());
             assert!(stopped, "{stop:?}: {:?}", vc.sil.controller.state());
-            assert_eq!(send(&mut vc, "ERR?\nXFT?\n\x05"), "10\n1=0 no fault\n0\n", "{stop:?}");
-            let pos_mm = number(&send(&mut vc, "POS?\n"));
+            assert_eq!(vc.exchange("ERR?\nXFT?\n\x05"), "10\n1=0 no fault\n0\n", "{stop:?}");
+            let pos_mm = number(&vc.exchange("POS?\n"));
             assert!(pos_mm > 0.1 && pos_mm < 0.5, "{stop:?} stopped at {pos_mm} mm");
         }
     }
@@ -546,12 +548,12 @@ mod tests {
     fn servo_on_again_mid_move_changes_nothing() {
         let p = Params::prototype();
         let mut vc = VirtualController::new(&p, &args()).unwrap();
-        assert_eq!(send(&mut vc, "RON 1 0\nSVO 1 1\nMOV 1 0.4\nERR?\n"), "0\n");
+        assert_eq!(vc.exchange("RON 1 0\nSVO 1 1\nMOV 1 0.4\nERR?\n"), "0\n");
         vc.sil.run_until(0.1, |_| false);
-        assert_eq!(send(&mut vc, "SVO 1 1\nERR?\n\x05"), "0\n1\n");
+        assert_eq!(vc.exchange("SVO 1 1\nERR?\n\x05"), "0\n1\n");
         assert!(vc.sil.run_until(1.0, |s| s.controller.on_target()));
-        assert_eq!(send(&mut vc, "ERR?\n"), "0\n");
-        assert!((number(&send(&mut vc, "POS?\n")) - 0.4).abs() <= 50e-6);
+        assert_eq!(vc.exchange("ERR?\n"), "0\n");
+        assert!((number(&vc.exchange("POS?\n")) - 0.4).abs() <= 50e-6);
     }
 
     #[test]
@@ -560,16 +562,16 @@ mod tests {
         // Index 20 µm above the start, negative switch 30 µm below it.
         let a = ServeArgs { index_um: 20.0, limit_mm: 0.05, ..args() };
         let mut vc = VirtualController::new(&p, &a).unwrap();
-        assert_eq!(send(&mut vc, "FRF\nERR?\n"), "0\n");
+        assert_eq!(vc.exchange("FRF\nERR?\n"), "0\n");
         let mut lowest = f64::MAX;
         let found = vc.sil.run_until(3.0, |s| {
             lowest = lowest.min(s.plant.slider_position_m());
             s.controller.state() != State::Referencing
         });
         assert!(found);
-        assert_eq!(send(&mut vc, "FRF?\nERR?\n"), "1=1\n0\n");
+        assert_eq!(vc.exchange("FRF?\nERR?\n"), "1=1\n0\n");
         let slider_um = vc.sil.plant.slider_position_m() * 1e6;
-        let pos_um = number(&send(&mut vc, "POS?\n")) * 1e3;
+        let pos_um = number(&vc.exchange("POS?\n")) * 1e3;
         assert!((slider_um - pos_um - 20.0).abs() < 0.3, "slider {slider_um} µm reads {pos_um} µm");
         // It went down to the switch at −30 µm first.
         assert!(lowest < -29e-6, "lowest {lowest}");
@@ -582,16 +584,16 @@ mod tests {
         let mut vc = VirtualController::new(&p, &a).unwrap();
         vc.sil.index_position_m = None; // a scale without index; switches at −20 and +40 µm
         let mut highest = f64::MIN;
-        assert_eq!(send(&mut vc, "FRF\nERR?\n"), "0\n");
+        assert_eq!(vc.exchange("FRF\nERR?\n"), "0\n");
         assert!(vc.sil.run_until(3.0, |s| {
             highest = highest.max(s.plant.slider_position_m());
             s.controller.state() != State::Referencing
         }));
-        assert_eq!(send(&mut vc, "FRF?\nERR?\n"), "1=1\n0\n");
+        assert_eq!(vc.exchange("FRF?\nERR?\n"), "1=1\n0\n");
         // It went all the way to the positive switch looking for an index, then back.
         assert!(highest >= 40e-6, "highest {highest}");
         let slider_um = vc.sil.plant.slider_position_m() * 1e6;
-        let pos_um = number(&send(&mut vc, "POS?\n")) * 1e3;
+        let pos_um = number(&vc.exchange("POS?\n")) * 1e3;
         // Zero (parameter 0x1017) where the negative switch closed, at −20 µm.
         assert!((slider_um - pos_um - -20.0).abs() < 0.3, "slider {slider_um} µm reads {pos_um} µm");
     }
@@ -602,11 +604,11 @@ mod tests {
         let a = ServeArgs { index_um: 5.0, limit_mm: 0.03, ..args() };
         let mut vc = VirtualController::new(&p, &a).unwrap();
         // Reference on the switch (the stage has no index, say) and call it −1 mm.
-        assert_eq!(send(&mut vc, "SPA 1 0x1016 1 1 0x1017 -1\nERR?\nSVO 1 1\nFRF 1\nERR?\n"), "0\n0\n");
+        assert_eq!(vc.exchange("SPA 1 0x1016 1 1 0x1017 -1\nERR?\nSVO 1 1\nFRF 1\nERR?\n"), "0\n0\n");
         assert!(vc.sil.run_until(3.0, |s| s.controller.state() != State::Referencing));
         // Servo was on: it holds where it found the switch.
-        assert_eq!(send(&mut vc, "FRF?\nSVO?\n"), "1=1\n1=1\n");
-        let pos_mm = number(&send(&mut vc, "POS?\n"));
+        assert_eq!(vc.exchange("FRF?\nSVO?\n"), "1=1\n1=1\n");
+        let pos_mm = number(&vc.exchange("POS?\n"));
         assert!((pos_mm - -1.0).abs() < 0.5e-3, "{pos_mm}");
         let slider_um = vc.sil.plant.slider_position_m() * 1e6;
         assert!(slider_um <= 5.0 - 30.0 + 0.5, "switch at −25 µm, slider at {slider_um} µm");
@@ -618,13 +620,13 @@ mod tests {
         let mut vc = VirtualController::new(&p, &args()).unwrap();
         let x0 = vc.sil.plant.slider_position_m();
         // 200 cycles at 1.5 kHz, 80 V, toward −x.
-        assert_eq!(send(&mut vc, "XOS 1 -200 80 1500\nERR?\n\x05"), "0\n1\n");
+        assert_eq!(vc.exchange("XOS 1 -200 80 1500\nERR?\n\x05"), "0\n1\n");
         assert!(vc.sil.run_until(1.0, |s| s.controller.state() == State::Idle));
         let moved_um = (vc.sil.plant.slider_position_m() - x0) * 1e6;
         // 0.133 s at up to the no-load speed (~2 mm/s here): tens of µm, negative.
         assert!(moved_um < -20.0 && moved_um > -400.0, "moved {moved_um} µm");
         vc.sil.run_until(0.002, |_| false); // the amplitude slews out
-        assert_eq!(send(&mut vc, "\x05XDA?\n"), "0\n1=0.000\n");
+        assert_eq!(vc.exchange("\x05XDA?\n"), "0\n1=0.000\n");
     }
 
     #[test]
@@ -636,9 +638,9 @@ mod tests {
         let mut vc = VirtualController::new(&p, &a).unwrap();
         // Only with the servo off and nothing moving (error 34 otherwise), as on the board where
         // writing the flash stalls the CPU.
-        assert_eq!(send(&mut vc, "SVO 1 1\nWPA 100\nERR?\n"), "34\n");
+        assert_eq!(vc.exchange("SVO 1 1\nWPA 100\nERR?\n"), "34\n");
         assert!(vc.board.stored.is_none() && !path.exists());
-        assert_eq!(send(&mut vc, "SVO 1 0\nVEL 1 1.5\nSPA 1 0x15 20 1 0x1019 100\nWPA 100\nERR?\n"), "0\n");
+        assert_eq!(vc.exchange("SVO 1 0\nVEL 1 1.5\nSPA 1 0x15 20 1 0x1019 100\nWPA 100\nERR?\n"), "0\n");
         // The file is the record the board writes to its flash page, byte for byte.
         let record = std::fs::read(&path).unwrap();
         let mut expected = controller_config(&p);
@@ -650,7 +652,7 @@ mod tests {
         let mut again = VirtualController::new(&p, &a).unwrap();
         assert_eq!(again.sil.controller.config(), &expected);
         assert_eq!(
-            send(&mut again, "VEL?\nTMX?\nSPA? 1 0x1019\nERR?\n"),
+            again.exchange("VEL?\nTMX?\nSPA? 1 0x1019\nERR?\n"),
             "1=1.5\n1=20.000000\n1 0x1019=100\n0\n"
         );
         // A file that is not a record is refused with the reason.
@@ -664,7 +666,7 @@ mod tests {
     fn wpa_without_a_file_keeps_the_record_in_memory() {
         let p = Params::prototype();
         let mut vc = VirtualController::new(&p, &args()).unwrap();
-        assert_eq!(send(&mut vc, "SPA 1 0x1 55\nWPA\nERR?\n"), "0\n");
+        assert_eq!(vc.exchange("SPA 1 0x1 55\nWPA\nERR?\n"), "0\n");
         let stored = vc.board.stored.clone().expect("stored");
         assert_eq!(stored, storage::encode(vc.sil.controller.config()).to_vec());
         assert_eq!(storage::decode(&stored, &controller_config(&p)).unwrap().kp_per_s, 55.0);
@@ -708,7 +710,7 @@ mod tests {
                 assert!(chunk.len() <= 512, "one read: {}", chunk.len());
                 // Each reply on its own, from a controller in the same state.
                 let mut single = VirtualController::new(&p, &args()).unwrap();
-                let expected: String = cmds.iter().map(|c| send(&mut single, c)).collect();
+                let expected: String = cmds.iter().map(|c| single.exchange(c)).collect();
                 assert!(expected.len() > REPLY_CAPACITY, "{}", expected.len());
                 let mut vc = VirtualController::new(&p, &args()).unwrap();
                 let mut link = OneChunk { chunk: Some(chunk), written: Vec::new() };
@@ -770,7 +772,7 @@ mod tests {
         let mut vc = VirtualController::new(&p, &args()).unwrap();
         let setup =
             "RON 1 0\nSVO 1 1\nDRC 1 1 1 2 1 2 3 1 3 4 1 1 5 1 2 6 1 3 7 1 1 8 1 2\nRTR 1\nDRT 0 4 0\n";
-        assert_eq!(send(&mut vc, &format!("{setup}MOV 1 5\nERR?\n")), "0\n");
+        assert_eq!(vc.exchange(&format!("{setup}MOV 1 5\nERR?\n")), "0\n");
         // The tables full, and a few periods more.
         for _ in 0..piezo_drive::recorder::DEPTH + 40 {
             vc.period();

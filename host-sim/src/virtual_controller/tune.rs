@@ -14,7 +14,6 @@ use crate::motor::params::Params;
 use crate::virtual_controller::calibration::{calibration_values, spa_line};
 use crate::virtual_controller::serve::{ServeArgs, VirtualController};
 use anyhow::{anyhow, Context, Result};
-use piezo_drive::gcs::Reply;
 use rayon::prelude::*;
 use serde::Serialize;
 use std::path::Path;
@@ -139,13 +138,13 @@ fn board_peaks_nm(
     };
     let mut board = VirtualController::new(motor, &args)?;
     let upload = spa_line(&calibration_values(candidate));
-    let reply = send(&mut board, &format!("RON 1 0\nPOS 1 0\nSVO 1 1\n{upload}\nERR?\n"));
+    let reply = board.exchange(&format!("RON 1 0\nPOS 1 0\nSVO 1 1\n{upload}\nERR?\n"));
     if reply.trim() != "0" {
         return Err(anyhow!("the simulated board refused '{upload}': {}", reply.trim()));
     }
     let mut peaks = Vec::new();
     let move_to = |board: &mut VirtualController, mm: f64| {
-        send(board, &format!("MOV 1 {mm}\n"));
+        board.exchange(&format!("MOV 1 {mm}\n"));
         let t0 = board.sil.time_s();
         let mut peak = 0i64;
         while board.sil.time_s() < t0 + MOVE_S {
@@ -166,12 +165,6 @@ fn board_peaks_nm(
         move_to(&mut board, 0.0);
     }
     Ok(peaks)
-}
-
-fn send(board: &mut VirtualController, text: &str) -> String {
-    let mut out = Reply::new();
-    board.feed(text.as_bytes(), &mut out);
-    String::from_utf8_lossy(&out).into_owned()
 }
 
 #[cfg(test)]
