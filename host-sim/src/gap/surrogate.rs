@@ -50,13 +50,10 @@ impl ProfileCache {
         ContactModel::with_profile(p, self.profile(p, c), c.direction).with_root_tolerance(ORBIT_TOLERANCE)
     }
 
-    /// The speed after one secant step from `hint` (`ContactModel::speed_after_one_secant`: for
-    /// the fits' slopes), else after the full search near it.
+    /// The speed after one secant step from `hint` (`ContactModel::speed_for_slope`: for the
+    /// fits' slopes), else after the full search near it.
     pub fn speed_for_slope(&self, p: &Params, c: &Condition, hint: Option<OrbitStart>) -> f64 {
-        let model = self.model(p, c);
-        hint.and_then(|h| model.speed_after_one_secant(c.load_n, h))
-            .or_else(|| model.orbit_near(c.load_n, hint).map(|(orbit, _)| orbit.mean_speed_m_s))
-            .unwrap_or_else(|| closed_speed_m_s(p, c))
+        self.model(p, c).speed_for_slope(c.load_n, hint).unwrap_or_else(|| closed_speed_m_s(p, c))
     }
 
     /// The contact model's steady speed along the commanded sense (m/s), the closed form's where

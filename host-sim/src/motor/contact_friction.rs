@@ -19,11 +19,60 @@ pub struct FrictionLaw {
     pub viscous_n_s_per_m: f64,
 }
 
+/// A step's length and the carriage's mass with what the law's implicit updates take from them,
+/// computed once per step length: every step of the steady model's orbits (hundreds of millions
+/// in a gap analysis) divided by them five to seven times, and divisions were most of a step.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StepScale {
+    pub dt_s: f64,
+    /// dt/M: the carriage's speed change per newton-step.
+    pub dt_per_kg: f64,
+    /// M/dt (rigid contact).
+    kg_per_dt: f64,
+    /// 1/dt: the layer's shear rate from its change.
+    per_dt: f64,
+    /// The stick trial's force per unit of shear rate, `a` (Kelvin–Voigt: kt·dt/4 + ct/2,
+    /// mass-scaled: kt·dt + ct), and `1/(1 + dt/M·a)`.
+    stick_n_s_per_m: f64,
+    stick_inv: f64,
+    /// Kelvin–Voigt relaxation: ct/dt and `1/(kt + ct/dt)`.
+    ct_per_dt: f64,
+    relax_inv: f64,
+    /// εc's implicit share: `k = εc·dt/M` and `1/(1 + k)`.
+    viscous_k: f64,
+    viscous_inv: f64,
+}
+
+impl StepScale {
+    pub fn new(law: &FrictionLaw, dt_s: f64, mass_kg: f64) -> Self {
+        let (kt, ct) = (law.kt_n_per_m, law.ct_n_s_per_m);
+        let dt_per_kg = dt_s / mass_kg;
+        let stick_n_s_per_m = match law.layer {
+            FrictionLayer::KelvinVoigt => 0.25 * kt * dt_s + 0.5 * ct,
+            FrictionLayer::MassScaled => kt * dt_s + ct,
+        };
+        let ct_per_dt = ct / dt_s;
+        let viscous_k = law.viscous_n_s_per_m * dt_per_kg;
+        StepScale {
+            dt_s,
+            dt_per_kg,
+            kg_per_dt: mass_kg / dt_s,
+            per_dt: 1.0 / dt_s,
+            stick_n_s_per_m,
+            stick_inv: 1.0 / (1.0 + dt_per_kg * stick_n_s_per_m),
+            ct_per_dt,
+            relax_inv: 1.0 / (kt + ct_per_dt),
+            viscous_k,
+            viscous_inv: 1.0 / (1.0 + viscous_k),
+        }
+    }
+}
+
 /// What one step of the tangential contact acts on.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StepInput {
-    pub dt_s: f64,
-    pub mass_kg: f64,
+pub struct StepInput<'a> {
+    /// The step's length and the carriage's mass ([`StepScale::new`] of the same law).
+    pub scale: &'a StepScale,
     /// Slider speed at the start of the step.
     pub slider_m_s: f64,
     /// External force on the slider over the step (load, guide), along +x.
@@ -97,19 +146,20 @@ impl Layer {
     /// a light slider stays stable.
     #[inline]
     fn kelvin_voigt(&mut self, law: &FrictionLaw, i: &StepInput) -> f64 {
-        let (dt, mass, kt, ct) = (i.dt_s, i.mass_kg, law.kt_n_per_m, law.ct_n_s_per_m);
+        let (c, kt) = (i.scale, law.kt_n_per_m);
         // Stick trial by the trapezoidal rule (energy-conserving for the undamped spring, so the
         // step adds no damping of its own): the layer shears at u = vf − v, s' = s + dt·(u0 + u)/2,
         // and the force over the step is F = kt·(s + s')/2 + ct·(u0 + u)/2 with u0 last step's
         // shear rate; v = v_old + dt·(ext + F)/m.
         let u0 = self.shear_rate_m_s;
-        let a = 0.25 * kt * dt + 0.5 * ct;
-        let v_stick = (i.slider_m_s + dt / mass * (i.external_n + kt * self.shear_m + a * (u0 + i.foot_m_s)))
-            / (1.0 + dt / mass * a);
+        let a = c.stick_n_s_per_m;
+        let v_stick = (i.slider_m_s
+            + c.dt_per_kg * (i.external_n + kt * self.shear_m + a * (u0 + i.foot_m_s)))
+            * c.stick_inv;
         let u = i.foot_m_s - v_stick;
         let trial = kt * self.shear_m + a * (u0 + u);
         if i.contact_n > 0.0 && trial.abs() <= i.mu_stick * i.contact_n {
-            self.shear_m += 0.5 * dt * (u0 + u);
+            self.shear_m += 0.5 * c.dt_s * (u0 + u);
             self.shear_rate_m_s = u;
             self.mode = Mode::Stick;
             return trial;
@@ -119,8 +169,8 @@ impl Layer {
             if i.contact_n > 0.0 { i.mu_scale * law.mu_dynamic * i.contact_n * trial.signum() } else { 0.0 };
         // The layer relaxes toward slide/kt: kt·s' + ct·(s' − s)/dt = slide (implicit Euler: no
         // overshoot however short ct/kt is against the step).
-        let s_new = (slide + ct / dt * self.shear_m) / (kt + ct / dt);
-        self.shear_rate_m_s = (s_new - self.shear_m) / dt;
+        let s_new = (slide + c.ct_per_dt * self.shear_m) * c.relax_inv;
+        self.shear_rate_m_s = (s_new - self.shear_m) * c.per_dt;
         self.shear_m = s_new;
         self.mode = sliding_mode(i.contact_n, slide);
         if i.contact_n > 0.0 {
@@ -133,18 +183,18 @@ impl Layer {
     /// [`FrictionLayer::MassScaled`]: backward Euler with the dashpot on the carriage's mass; in
     /// slip the layer is set to the sliding force's shear at once.
     fn mass_scaled(&mut self, law: &FrictionLaw, i: &StepInput) -> f64 {
-        let (dt, mass, kt, ct) = (i.dt_s, i.mass_kg, law.kt_n_per_m, law.ct_n_s_per_m);
+        let (c, kt, ct) = (i.scale, law.kt_n_per_m, law.ct_n_s_per_m);
         if i.contact_n <= 0.0 {
             self.shear_m = 0.0;
             self.mode = Mode::Free;
             return 0.0;
         }
-        let a = kt * dt + ct;
-        let v_new = (i.slider_m_s + dt / mass * (i.external_n + kt * self.shear_m + a * i.foot_m_s))
-            / (1.0 + dt / mass * a);
-        let trial = kt * (self.shear_m + dt * (i.foot_m_s - v_new)) + ct * (i.foot_m_s - v_new);
+        let a = c.stick_n_s_per_m;
+        let v_new =
+            (i.slider_m_s + c.dt_per_kg * (i.external_n + kt * self.shear_m + a * i.foot_m_s)) * c.stick_inv;
+        let trial = kt * (self.shear_m + c.dt_s * (i.foot_m_s - v_new)) + ct * (i.foot_m_s - v_new);
         if trial.abs() <= i.mu_stick * i.contact_n {
-            self.shear_m += dt * (i.foot_m_s - v_new);
+            self.shear_m += c.dt_s * (i.foot_m_s - v_new);
             self.mode = Mode::Stick;
             trial
         } else {
@@ -160,7 +210,7 @@ impl Layer {
 /// of the step, if within the sticking limit; otherwise sliding friction (plus εc's viscous part)
 /// in the direction of that need.
 fn rigid(law: &FrictionLaw, i: &StepInput) -> (f64, Mode) {
-    let need = i.mass_kg * (i.foot_m_s - i.slider_m_s) / i.dt_s - i.external_n;
+    let need = i.scale.kg_per_dt * (i.foot_m_s - i.slider_m_s) - i.external_n;
     if i.contact_n <= 0.0 {
         (0.0, Mode::Free)
     } else if need.abs() <= i.mu_stick * i.contact_n {
@@ -174,7 +224,8 @@ fn rigid(law: &FrictionLaw, i: &StepInput) -> (f64, Mode) {
 /// εc's viscous part `εc·(ẋ − v_new)`, implicit: `v_new` from this same update with `coulomb`.
 #[inline]
 fn viscous(law: &FrictionLaw, i: &StepInput, coulomb: f64) -> f64 {
-    let k = law.viscous_n_s_per_m * i.dt_s / i.mass_kg;
-    let v_new = (i.slider_m_s + i.dt_s * (i.external_n + coulomb) / i.mass_kg + k * i.foot_m_s) / (1.0 + k);
+    let c = i.scale;
+    let v_new =
+        (i.slider_m_s + c.dt_per_kg * (i.external_n + coulomb) + c.viscous_k * i.foot_m_s) * c.viscous_inv;
     law.viscous_n_s_per_m * (i.foot_m_s - v_new)
 }

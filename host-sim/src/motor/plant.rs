@@ -7,7 +7,7 @@
 //! located to `step/2^10`. This handles `kc` up to 2e9 N/m without a tiny step. The slider uses a
 //! velocity-level implicit friction law (stick solved exactly), so sticking never chatters.
 
-use crate::motor::contact_friction::{FrictionLaw, Layer, StepInput};
+use crate::motor::contact_friction::{FrictionLaw, Layer, StepInput, StepScale};
 use crate::motor::effects::Effects;
 use crate::motor::params::{FrictionLayer, FrictionModel, Params};
 use crate::motor::steady::amplifier_stage_tau_s;
@@ -180,6 +180,9 @@ pub struct Plant {
     /// The friction layer between foot and slider (Coulomb laws) and its law.
     layer: Layer,
     friction_law: FrictionLaw,
+    /// The slider's step with `friction_law` (each step, or its sub-steps where the friction
+    /// falls with the slip speed), computed once.
+    slider_step: StepScale,
     friction_model: FrictionModel,
     // Last step's outputs.
     contact_force_n: f64,
@@ -274,6 +277,7 @@ impl Plant {
         let anchor_m = y2 + preload_n / k2;
         let tau_s = amplifier_stage_tau_s(p);
         let mid = p.amplifier_mid_v();
+        let slip_dependent = p.effects.stribeck_peak() > 1.0 && p.friction.model != FrictionModel::Lugre;
         let mut plant = Plant {
             p: p.clone(),
             dt_s: dt,
@@ -297,13 +301,18 @@ impl Plant {
             bristle_m: 0.0,
             layer: Layer::default(),
             friction_law: friction_law(p, kc, c3),
+            slider_step: StepScale::new(
+                &friction_law(p, kc, c3),
+                dt / f64::from(1u32 << if slip_dependent { SLIP_LEVEL } else { 0 }),
+                p.effects.slider_mass_kg(p.slider.mass_kg),
+            ),
             friction_model: p.friction.model,
             contact_force_n: preload_n,
             friction_force_n: 0.0,
             foot_speed_m_s: 0.0,
             drive_off: false,
             effects: p.effects.clone(),
-            slip_dependent: p.effects.stribeck_peak() > 1.0 && p.friction.model != FrictionModel::Lugre,
+            slip_dependent,
             slider_mass_kg: p.effects.slider_mass_kg(p.slider.mass_kg),
             drive_direction: 1,
             sense_lp: 0.0,
@@ -591,9 +600,13 @@ impl Plant {
             FrictionModel::Coulomb | FrictionModel::StaticDynamic => {
                 let mu_stick = stick_scale
                     * if self.friction_model == FrictionModel::Coulomb { f.mu_dynamic } else { f.mu_static };
+                let scale = if dt == self.slider_step.dt_s {
+                    self.slider_step
+                } else {
+                    StepScale::new(&self.friction_law, dt, mass)
+                };
                 let input = StepInput {
-                    dt_s: dt,
-                    mass_kg: mass,
+                    scale: &scale,
                     slider_m_s: v_old,
                     external_n: ext,
                     contact_n: fc,

@@ -49,7 +49,7 @@
 //! (its gain is in `Yc`, `Xc`; its phase lag is the same on both channels, so it moves nothing),
 //! and LuGre (the Coulomb laws only; LuGre runs as Coulomb with μd).
 
-use crate::motor::contact_friction::{FrictionLaw, Layer, Mode, StepInput};
+use crate::motor::contact_friction::{FrictionLaw, Layer, Mode, StepInput, StepScale};
 use crate::motor::effects::Effects;
 use crate::motor::params::{FrictionModel, Params};
 use crate::motor::plant::{contact_spring, friction_law, state_matrix, stator_dashpots};
@@ -137,6 +137,10 @@ pub struct ContactProfile {
     /// Per base step (each [`FINE`] fine steps), which of its halves, quarters, ... the orbit may
     /// take whole ([`even_force`]): bit `2^level − 1 + k` for the k-th run of `FINE >> level`.
     even: Vec<u16>,
+    /// The orbit's steps over the period where only the profile splits them (see
+    /// [`ContactModel::period`]), with their mean contact force: laid out once, not found again
+    /// step by step in each of the period's evaluations.
+    leaves: Vec<Leaf>,
     /// Peak tangential foot speed ω·Xc (m/s).
     pub foot_peak_m_s: f64,
     pub frequency_hz: f64,
@@ -164,25 +168,7 @@ impl ContactProfile {
         let anchor_force_n = k2 * (y2 + op.preload_n / k2);
         let h = 1.0 / (op.frequency_hz * STEPS as f64);
         let h_fine = h / FINE as f64;
-        let augmented = |contact: bool| -> M7 {
-            let a6 = state_matrix(p, contact.then_some((kc, c3)));
-            let mut a = M7::zeros();
-            for i in 0..4 {
-                for j in 0..4 {
-                    a[(i, j)] = a6[(i, j)];
-                }
-                a[(i, 4)] = a6[(i, 4)] * amp.normal_force_n;
-                a[(i, 6)] = a6[(i, 5)] * anchor_force_n;
-            }
-            a[(4, 5)] = -w;
-            a[(5, 4)] = w;
-            a
-        };
-        let levels = |contact: bool| -> Vec<M7> {
-            let a = augmented(contact);
-            (0..=LEVELS).map(|l| (a * (h / f64::from(1u32 << l))).exp()).collect()
-        };
-        let transitions = [levels(false), levels(true)];
+        let transitions = Transitions::new(p, (kc, c3), amp.normal_force_n, anchor_force_n, w, h);
         let force = |x: &V7| if x[0] > 0.0 { (kc * x[0] + c3 * x[1]).max(0.0) } else { 0.0 };
         let pressing = |x: &V7| x[0] > 0.0 && kc * x[0] + c3 * x[1] > 0.0;
         // φ = −π at the start: cos = −1, sin = 0.
@@ -209,12 +195,16 @@ impl ContactProfile {
             let mut now = vec![0.0; STEPS];
             for slot in now.iter_mut() {
                 // The drive's amplitude ramps up as the plant's does (a bouncing foot may settle
-                // into another pattern after a shock), held over each step.
-                step_count += 1.0;
-                let r = (x[4] * x[4] + x[5] * x[5]).sqrt();
-                let target = (step_count / ramp_steps).min(1.0);
-                x[4] *= target / r;
-                x[5] *= target / r;
+                // into another pattern after a shock), held over each step. After the ramp the
+                // transitions turn the drive's cos/sin without changing their amplitude (to
+                // rounding, 1e-11 over a thousand periods).
+                if step_count < ramp_steps {
+                    step_count += 1.0;
+                    let r = (x[4] * x[4] + x[5] * x[5]).sqrt();
+                    let target = (step_count / ramp_steps).min(1.0);
+                    x[4] *= target / r;
+                    x[5] *= target / r;
+                }
                 *slot = advance(&mut x, 0, &transitions, &force, &pressing, h) / h;
             }
             recent.push_back(now);
@@ -294,24 +284,49 @@ impl ContactProfile {
                 bits
             })
             .collect();
-        ContactProfile {
+        let mut profile = ContactProfile {
             contact_n,
             prefix_n,
             even,
+            leaves: Vec::new(),
             foot_peak_m_s,
             frequency_hz: op.frequency_hz,
             voltage_v: op.voltage_v,
             preload_n: op.preload_n,
             settled,
             periods,
+        };
+        let mut leaves = Vec::new();
+        for start in (0..profile.contact_n.len()).step_by(FINE) {
+            profile.lay_out(start, FINE, &mut leaves);
         }
+        profile.leaves = leaves;
+        profile
+    }
+
+    /// The leaves of fine steps `start..start + len` (a run of a base step), halved where the
+    /// run is not even.
+    fn lay_out(&self, start: usize, len: usize, leaves: &mut Vec<Leaf>) {
+        if len > 1 && !self.even_run(start, len) {
+            self.lay_out(start, len / 2, leaves);
+            self.lay_out(start + len / 2, len / 2, leaves);
+        } else {
+            leaves.push(Leaf { start, len, contact_n: self.mean_n(start, len) });
+        }
+    }
+
+    /// The mean contact force over fine steps `start..start + len`.
+    fn mean_n(&self, start: usize, len: usize) -> f64 {
+        (self.prefix_n[start + len] - self.prefix_n[start]) / len as f64
     }
 
     /// Whether the orbit may take fine steps `start..start + len` (a run of a base step,
     /// `len` a power of two up to [`FINE`]) whole.
     fn even_run(&self, start: usize, len: usize) -> bool {
-        let level = (FINE / len).trailing_zeros();
-        let bit = (1usize << level) - 1 + (start % FINE) / len;
+        // Shifts, not divisions (`len` is a power of two): this is asked at every step.
+        let shift = len.trailing_zeros();
+        let level = FINE_LEVEL as u32 - shift;
+        let bit = (1usize << level) - 1 + ((start % FINE) >> shift);
         self.even.get(start / FINE).is_some_and(|bits| bits & (1 << bit) != 0)
     }
 
@@ -386,13 +401,14 @@ fn even_force(fine_n: &[f64]) -> bool {
 fn advance(
     x: &mut V7,
     lvl: usize,
-    t: &[Vec<M7>; 2],
+    t: &Transitions,
     force: &impl Fn(&V7) -> f64,
     pressing: &impl Fn(&V7) -> bool,
     h: f64,
 ) -> f64 {
     let contact = pressing(x);
-    let next = t[usize::from(contact)][lvl] * *x;
+    let m = &t.by_contact[usize::from(contact)][lvl];
+    let next = if t.drive_only { transition(m, x) } else { m * *x };
     if pressing(&next) == contact || lvl == LEVELS {
         let hl = h / f64::from(1u32 << lvl);
         let impulse = if contact { 0.5 * (force(x) + force(&next)) * hl } else { 0.0 };
@@ -400,6 +416,82 @@ fn advance(
         return impulse;
     }
     advance(x, lvl + 1, t, force, pressing, h) + advance(x, lvl + 1, t, force, pressing, h)
+}
+
+/// The exact transitions of the augmented normal state over a base step and its halvings
+/// (index: level), without and with the foot pressing.
+struct Transitions {
+    by_contact: [Vec<M7>; 2],
+    /// Every one has in its drive rows only the drive's rotation and the anchor's constant
+    /// ([`drive_only`]): stepped by [`transition`].
+    drive_only: bool,
+}
+
+impl Transitions {
+    /// For the stator of `p` with contact spring and dashpot `contact`, under the stacks'
+    /// normal force amplitude (N) and the preload spring's anchor force (N), at drive frequency
+    /// `w` (rad/s), base step `h` (s).
+    fn new(
+        p: &Params,
+        contact: (f64, f64),
+        normal_force_n: f64,
+        anchor_force_n: f64,
+        w: f64,
+        h: f64,
+    ) -> Self {
+        // The state [y1, ẏ1, y2, ẏ2] augmented with the drive's cos/sin and a constant, so that
+        // the sine and the anchor enter exactly.
+        let augmented = |pressing: bool| -> M7 {
+            let a6 = state_matrix(p, pressing.then_some(contact));
+            let mut a = M7::zeros();
+            for i in 0..4 {
+                for j in 0..4 {
+                    a[(i, j)] = a6[(i, j)];
+                }
+                a[(i, 4)] = a6[(i, 4)] * normal_force_n;
+                a[(i, 6)] = a6[(i, 5)] * anchor_force_n;
+            }
+            a[(4, 5)] = -w;
+            a[(5, 4)] = w;
+            a
+        };
+        let levels = |pressing: bool| -> Vec<M7> {
+            let a = augmented(pressing);
+            (0..=LEVELS).map(|l| (a * (h / f64::from(1u32 << l))).exp()).collect()
+        };
+        let by_contact = [levels(false), levels(true)];
+        Transitions { drive_only: by_contact.iter().flatten().all(drive_only), by_contact }
+    }
+}
+
+/// Whether a transition's last three rows are the drive's cos/sin turned by their rotation and
+/// the anchor's constant kept, all their other entries exact zeros: what the exponential of
+/// [`ContactProfile::new`]'s augmented matrix has there.
+fn drive_only(m: &M7) -> bool {
+    (4..7).all(|i| (0..4).all(|j| m[(i, j)] == 0.0))
+        && m[(4, 6)] == 0.0
+        && m[(5, 6)] == 0.0
+        && m[(6, 4)] == 0.0
+        && m[(6, 5)] == 0.0
+}
+
+/// `m·x` for a [`drive_only`] transition: the stator's four rows in full, the drive's two by
+/// their rotation and the constant by itself. The terms are summed in the order of nalgebra's
+/// product, so the result is the same to the bit for a third of the work.
+#[inline]
+fn transition(m: &M7, x: &V7) -> V7 {
+    let mut y = V7::zeros();
+    for i in 0..4 {
+        let mut sum = m[(i, 0)] * x[0];
+        for j in 1..7 {
+            sum += m[(i, j)] * x[j];
+        }
+        y[i] = sum;
+    }
+    y[4] = m[(4, 4)] * x[4] + m[(4, 5)] * x[5];
+    y[5] = m[(5, 4)] * x[4] + m[(5, 5)] * x[5];
+    y[6] = m[(6, 6)] * x[6];
+    y
 }
 
 /// Whether a secant's slope of the excess stays on the branch of the period map a hint's slope
@@ -431,7 +523,9 @@ pub struct ContactModel {
     effects: Effects,
     /// cos φ at the fine step ends ([`cos_ends`]).
     cos_end: &'static [f64],
-    h_fine_s: f64,
+    /// The carriage's step of each length the orbit takes, [`FINE`] fine steps down to one
+    /// (index: log2 of the length).
+    scales: [StepScale; FINE_LEVEL + 1],
     /// The carriage on the friction layer's shear spring, `√(kt/M)` (0 for a rigid interface).
     layer_rad_s: f64,
     /// Every step a fine step ([`Self::on_fine_steps`]).
@@ -444,6 +538,30 @@ pub struct ContactModel {
     /// No effects; else μ's factor of the preload.
     plain: bool,
     preload_factor: f64,
+}
+
+/// One step of a carriage's orbit: fine steps `start..start + len` and their mean contact force.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Leaf {
+    start: usize,
+    len: usize,
+    contact_n: f64,
+}
+
+/// A period already run: from speed `v0_m_s` and `layer`, its (end speed, mean speed, ripple,
+/// end layer).
+struct Known {
+    v0_m_s: f64,
+    layer: Layer,
+    period: (f64, f64, f64, Layer),
+}
+
+impl Known {
+    /// Whether a period from `v0` and `layer` is this one: the same bits.
+    fn is_from(&self, v0: f64, layer: Layer) -> bool {
+        let bits = |l: &Layer| (l.shear_m.to_bits(), l.shear_rate_m_s.to_bits(), l.mode);
+        self.v0_m_s.to_bits() == v0.to_bits() && bits(&self.layer) == bits(&layer)
+    }
 }
 
 /// A period of the carriage under way.
@@ -495,8 +613,11 @@ impl ContactModel {
         let amp = amplitudes(p, profile.voltage_v, profile.frequency_hz);
         let law = friction_law(p, kc, c3);
         let mass_kg = p.effects.slider_mass_kg(p.slider.mass_kg);
+        let h_fine_s = 1.0 / (profile.frequency_hz * FINE_STEPS as f64);
         ContactModel {
-            h_fine_s: 1.0 / (profile.frequency_hz * FINE_STEPS as f64),
+            scales: std::array::from_fn(|level| {
+                StepScale::new(&law, h_fine_s * (1usize << level) as f64, mass_kg)
+            }),
             layer_rad_s: (law.kt_n_per_m.max(0.0) / mass_kg).sqrt(),
             all_fine: false,
             root_tolerance: ROOT_TOLERANCE,
@@ -549,8 +670,18 @@ impl ContactModel {
     fn period(&self, v0: f64, layer: Layer, load_n: f64) -> (f64, f64, f64, Layer) {
         let mut run = Run { v: v0, layer, sum: 0.0, lo: v0, hi: v0 };
         let n = self.profile.contact_n.len();
-        for start in (0..n).step_by(FINE) {
-            self.step(&mut run, start, FINE, load_n);
+        // Where neither the layer's turn nor a breakaway can halve a step, the steps are the
+        // profile's own ([`ContactProfile::lay_out`], the same halving as `step`'s).
+        let longest_s = self.scales[FINE_LEVEL].dt_s;
+        if !self.all_fine && !self.split_at_breakaway && self.layer_rad_s * longest_s <= SPLIT_LAYER_TURN_RAD
+        {
+            for leaf in &self.profile.leaves {
+                self.take(&mut run, leaf.start, leaf.len, leaf.contact_n, load_n, false);
+            }
+        } else {
+            for start in (0..n).step_by(FINE) {
+                self.step(&mut run, start, FINE, load_n);
+            }
         }
         (run.v, run.sum / n as f64, run.hi - run.lo, run.layer)
     }
@@ -558,7 +689,8 @@ impl ContactModel {
     /// The carriage over fine steps `start..start + len` of the profile, halved as
     /// [`Self::period`] says.
     fn step(&self, run: &mut Run, start: usize, len: usize, load_n: f64) {
-        let h = self.h_fine_s * len as f64;
+        let scale = &self.scales[len.trailing_zeros() as usize];
+        let h = scale.dt_s;
         let profile = &self.profile;
         let split = len > 1
             && (self.all_fine
@@ -569,7 +701,26 @@ impl ContactModel {
             self.step(run, start + len / 2, len / 2, load_n);
             return;
         }
-        let fc = (profile.prefix_n[start + len] - profile.prefix_n[start]) / len as f64;
+        let fc = profile.mean_n(start, len);
+        if !self.take(run, start, len, fc, load_n, self.split_at_breakaway) {
+            self.step(run, start, len / 2, load_n);
+            self.step(run, start + len / 2, len / 2, load_n);
+        }
+    }
+
+    /// The carriage over fine steps `start..start + len` whole, under mean contact force `fc`.
+    /// With `at_breakaway` (and `len > 1`) a step in which the interface changes between stick
+    /// and slip is not taken: returns false, `run` as it was.
+    fn take(
+        &self,
+        run: &mut Run,
+        start: usize,
+        len: usize,
+        fc: f64,
+        load_n: f64,
+        at_breakaway: bool,
+    ) -> bool {
+        let scale = &self.scales[len.trailing_zeros() as usize];
         let v = run.v;
         let foot_m_s = self.foot_peak_m_s * self.cos_end[(start + len - 1) % FINE_STEPS];
         // The guide's friction is symmetric in the sense, so it reads the same along the drive.
@@ -583,8 +734,7 @@ impl ContactModel {
         };
         let external_n = -load_n - self.guide_n_s_per_m * v + rail_n;
         let input = StepInput {
-            dt_s: h,
-            mass_kg: self.mass_kg,
+            scale,
             slider_m_s: v,
             external_n,
             contact_n: fc,
@@ -592,23 +742,17 @@ impl ContactModel {
             mu_stick: self.mu_stick,
             mu_scale,
         };
-        let friction = if self.split_at_breakaway && len > 1 {
-            let before = run.layer;
-            let friction = run.layer.step(&self.law, &input);
-            if run.layer.mode != before.mode {
-                run.layer = before;
-                self.step(run, start, len / 2, load_n);
-                self.step(run, start + len / 2, len / 2, load_n);
-                return;
-            }
-            friction
-        } else {
-            run.layer.step(&self.law, &input)
-        };
-        run.v += (external_n + friction) * h / self.mass_kg;
+        let before = run.layer;
+        let friction = run.layer.step(&self.law, &input);
+        if at_breakaway && len > 1 && run.layer.mode != before.mode {
+            run.layer = before;
+            return false;
+        }
+        run.v += (external_n + friction) * scale.dt_per_kg;
         run.sum += run.v * len as f64;
         run.lo = run.lo.min(run.v);
         run.hi = run.hi.max(run.v);
+        true
     }
 
     /// The periodic motion under a constant load opposing the drive; `None` when none starts
@@ -626,6 +770,17 @@ impl ContactModel {
     /// [`Self::with_root_tolerance`] of the foot's peak speed); only the periods spent finding it
     /// are fewer.
     pub fn orbit_near(&self, load_n: f64, hint: Option<OrbitStart>) -> Option<(Orbit, OrbitStart)> {
+        self.orbit_search(load_n, hint, &[])
+    }
+
+    /// [`Self::orbit_near`], the periods in `known` taken as evaluated (the same period from the
+    /// same speed and layer gives the same to the bit).
+    fn orbit_search(
+        &self,
+        load_n: f64,
+        hint: Option<OrbitStart>,
+        known: &[Known],
+    ) -> Option<(Orbit, OrbitStart)> {
         let w = self.foot_peak_m_s.abs().max(1e-9);
         let hint_v0 = hint.map(|h| h.v0_m_s);
         // v(T) − v(0) and the period's mean speed and ripple, from v(0).
@@ -636,7 +791,10 @@ impl ContactModel {
         let carried: std::cell::Cell<Option<Layer>> = std::cell::Cell::new(hint.map(|h| h.layer));
         let excess = |v0: f64| {
             let start = carried.get().unwrap_or_else(|| self.period(v0, Layer::default(), load_n).3);
-            let (end, mean, ripple, layer) = self.period(v0, start, load_n);
+            let (end, mean, ripple, layer) = match known.iter().find(|k| k.is_from(v0, start)) {
+                Some(k) => k.period,
+                None => self.period(v0, start, load_n),
+            };
             carried.set(Some(layer));
             (end - v0, Orbit { mean_speed_m_s: mean, ripple_m_s: ripple })
         };
@@ -791,12 +949,32 @@ impl ContactModel {
     /// three to five. `None` where the hint has no slope or the step leaves its branch or has not
     /// converged ([`ONE_SECANT_CONVERGED`]): then the caller searches in full.
     pub fn speed_after_one_secant(&self, load_n: f64, hint: OrbitStart) -> Option<f64> {
+        self.one_secant(load_n, hint, &mut Vec::new())
+    }
+
+    /// The speed for a finite difference from `hint`: after one secant step
+    /// ([`Self::speed_after_one_secant`]), else after the full search near it (that search's
+    /// first periods are the secant step's, so they are not run again: a third of the gap
+    /// workflow's secant steps searched on). `None` where the carriage has no orbit.
+    pub fn speed_for_slope(&self, load_n: f64, hint: Option<OrbitStart>) -> Option<f64> {
+        let mut known = Vec::new();
+        hint.and_then(|h| self.one_secant(load_n, h, &mut known))
+            .or_else(|| self.orbit_search(load_n, hint, &known).map(|(orbit, _)| orbit.mean_speed_m_s))
+    }
+
+    /// [`Self::speed_after_one_secant`], the periods it ran pushed to `known`.
+    fn one_secant(&self, load_n: f64, hint: OrbitStart, known: &mut Vec<Known>) -> Option<f64> {
         let w = self.foot_peak_m_s.abs().max(1e-9);
         if !(hint.v0_m_s.is_finite() && hint.slope < 0.0) {
             return None;
         }
+        let mut period = |v0: f64, layer: Layer| {
+            let p = self.period(v0, layer, load_n);
+            known.push(Known { v0_m_s: v0, layer, period: p });
+            p
+        };
         let x0 = hint.v0_m_s;
-        let (end0, mean0, _, layer) = self.period(x0, hint.layer, load_n);
+        let (end0, mean0, _, layer) = period(x0, hint.layer);
         let e0 = end0 - x0;
         let x1 = x0 - e0 / hint.slope;
         if !x1.is_finite() || (x1 - x0).abs() > 0.5 * w {
@@ -805,7 +983,7 @@ impl ContactModel {
         if e0.abs() < hint.slope.abs() * self.root_tolerance * w {
             return Some(mean0);
         }
-        let (end1, mean1, _, _) = self.period(x1, layer, load_n);
+        let (end1, mean1, _, _) = period(x1, layer);
         let e1 = end1 - x1;
         let s1 = (e1 - e0) / (x1 - x0);
         if !same_branch(s1, hint.slope) {
@@ -831,5 +1009,40 @@ impl ContactModel {
         let forward = |load: f64| self.speed_at_load_m_s(load).is_some_and(|v| v > 0.0);
         let top = self.mu_stick * self.profile.mean_contact_n().max(1e-9);
         stall_load_n(forward, top, 1e-4 * top)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_short_product_is_nalgebras_to_the_bit() {
+        // The exponentials of the sourced prototype's augmented matrices have exact zeros
+        // wherever `transition` skips a term, and its sums run in nalgebra's order.
+        let p = Params::prototype_sourced();
+        let (kc, c3) = contact_spring(&p, 10.0);
+        for frequency_hz in [500.0, 1500.0, 2200.0] {
+            let w = TAU * frequency_hz;
+            let t = Transitions::new(&p, (kc, c3), 7.0, 12.0, w, 1.0 / (frequency_hz * STEPS as f64));
+            assert!(t.drive_only, "{frequency_hz} Hz");
+            let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+            let mut next = || {
+                seed ^= seed << 13;
+                seed ^= seed >> 7;
+                seed ^= seed << 17;
+                (seed >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+            };
+            for m in t.by_contact.iter().flatten() {
+                for _ in 0..50 {
+                    let x = V7::from_fn(|i, _| if i == 6 { 1.0 } else { next() * 1e-5 });
+                    let (fast, full) = (transition(m, &x), m * x);
+                    assert!(
+                        fast.iter().zip(full.iter()).all(|(a, b)| a.to_bits() == b.to_bits()),
+                        "{fast} {full}"
+                    );
+                }
+            }
+        }
     }
 }
