@@ -40,6 +40,10 @@ pub struct Data {
     /// The first row with each row's operating point (its preload, voltage, frequency and
     /// direction exactly; the load may differ): rows there share the closed form's model.
     pub same_point: Vec<usize>,
+    /// Each row's load point: an index shared by the rows with its preload, voltage, frequency
+    /// and load exactly (either sense), for [`first_alike`]; and how many there are.
+    pub load_point: Vec<usize>,
+    pub n_load_points: usize,
 }
 
 /// Measured preloads closer than this (N) belong to one preload setting: several times the
@@ -107,7 +111,27 @@ impl Data {
         };
         let mut first = std::collections::HashMap::new();
         let same_point = conds.iter().enumerate().map(|(i, c)| *first.entry(point(c)).or_insert(i)).collect();
-        Data { conds, y, sigma, curve, preload_level, n_curves: keys.len(), same_point }
+        let mut points = std::collections::HashMap::new();
+        let load_point: Vec<usize> = conds
+            .iter()
+            .map(|c| {
+                let key = [c.preload_n, c.voltage_v, c.frequency_hz, c.load_n].map(f64::to_bits);
+                let next = points.len();
+                *points.entry(key).or_insert(next)
+            })
+            .collect();
+        let n_load_points = points.len();
+        Data {
+            conds,
+            y,
+            sigma,
+            curve,
+            preload_level,
+            n_curves: keys.len(),
+            same_point,
+            load_point,
+            n_load_points,
+        }
     }
 
     pub fn len(&self) -> usize {
@@ -344,27 +368,38 @@ pub(super) fn first_alike(
     rows: &[usize],
     same: impl Fn(usize, usize) -> bool,
 ) -> Vec<usize> {
-    let mut seen: std::collections::HashMap<[u64; 5], Vec<usize>> = std::collections::HashMap::new();
+    // The key is the row's load point and which of the senses' foot speed factors (−1, 0, +1)
+    // its own equals first, as a number: no hashing (this runs for every evaluation of a fit).
+    let senses = [-1i8, 0, 1];
+    let factor = |d: i8| p.effects.tangential_factor(d).to_bits();
+    let class: Vec<usize> =
+        senses.iter().map(|&d| senses.iter().position(|&e| factor(e) == factor(d)).unwrap_or(0)).collect();
+    let key = |i: usize| {
+        let sense = usize::try_from(data.conds[i].direction.signum() + 1).unwrap_or(1);
+        data.load_point[i] * 3 + class[sense]
+    };
+    // Per key, the positions that lead a group, in the order they came: a list through `next`.
+    const NONE: usize = usize::MAX;
+    let mut head = vec![NONE; data.n_load_points * 3];
+    let mut tail = vec![NONE; data.n_load_points * 3];
+    let mut next = vec![NONE; rows.len()];
     rows.iter()
         .enumerate()
         .map(|(k, &i)| {
-            let c = &data.conds[i];
-            let key = [
-                c.preload_n,
-                c.voltage_v,
-                c.frequency_hz,
-                c.load_n,
-                p.effects.tangential_factor(c.direction),
-            ]
-            .map(f64::to_bits);
-            let alike = seen.entry(key).or_default();
-            match alike.iter().find(|&&j| same(j, k)) {
-                Some(&j) => j,
-                None => {
-                    alike.push(k);
-                    k
+            let key = key(i);
+            let mut j = head[key];
+            while j != NONE {
+                if same(j, k) {
+                    return j;
                 }
+                j = next[j];
             }
+            match tail[key] {
+                NONE => head[key] = k,
+                last => next[last] = k,
+            }
+            tail[key] = k;
+            k
         })
         .collect()
 }
