@@ -69,9 +69,9 @@ fn the_cores_copy_follows_the_f64_model_within_1_percent_over_the_grid() {
                     |load_n| core.mean_speed_m_s(load_n as f32).map_or(f64::NAN, f64::from),
                 )
             };
-            let orbit = (profile.settled && profile.contact_n.len() == FINE_STEPS).then(|| {
-                let force =
-                    ContactForce::from_fine(|j| profile.contact_n[j] as f32).expect("room for the events");
+            let orbit = (profile.settled && profile.fine_steps() == FINE_STEPS).then(|| {
+                let contact_n = profile.contact_n();
+                let force = ContactForce::from_fine(|j| contact_n[j] as f32).expect("room for the events");
                 (worst(&force), force.events())
             });
             let (stator, drive) = core_normal_motion(&p, op);
@@ -126,9 +126,8 @@ fn the_cores_hinted_orbits_are_the_cold_ones() {
         let (p, op) =
             host_sim::model_grid::at_point(&Params::prototype_sourced(), (mass_kg, preload_n, frequency_hz));
         let model = ContactModel::new(&p, op);
-        let profile = &model.profile;
-        let Ok(force) = ContactForce::from_fine(|j| profile.contact_n[j % profile.contact_n.len()] as f32)
-        else {
+        let contact_n = model.profile.contact_n();
+        let Ok(force) = ContactForce::from_fine(|j| contact_n[j % contact_n.len()] as f32) else {
             panic!("room for the events at {op:?}");
         };
         let core = Orbits::new(&force, core_carriage(&p, &model));

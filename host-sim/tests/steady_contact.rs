@@ -48,9 +48,9 @@ fn in_permanent_contact_the_contact_force_is_the_stators_linear_response() {
         let profile = ContactProfile::new(&p, op);
         let share = profile.contact_fraction();
         assert!(profile.settled && share == 1.0, "{frequency_hz} Hz: in contact {share}");
-        let n = profile.contact_n.len();
+        let n = profile.fine_steps();
         let (mut a, mut b) = (0.0, 0.0);
-        for (i, f) in profile.contact_n.iter().enumerate() {
+        for (i, f) in profile.contact_n().iter().enumerate() {
             let phi = -PI + TAU * (i as f64 + 0.5) / n as f64;
             a += 2.0 / n as f64 * f * phi.cos();
             b += 2.0 / n as f64 * f * phi.sin();
@@ -227,11 +227,7 @@ fn a_foot_whose_landing_repeats_only_to_its_rounding_is_solved_over_its_mean_per
     {
         let op = OperatingPoint { preload_n, voltage_v, frequency_hz };
         let profile = ContactProfile::new(&p, op);
-        assert!(
-            profile.settled && profile.contact_n.len() == FINE_STEPS,
-            "{op:?}: settled {}",
-            profile.settled
-        );
+        assert!(profile.settled && profile.fine_steps() == FINE_STEPS, "{op:?}: settled {}", profile.settled);
         assert!(profile.periods <= 100, "{op:?}: {} periods", profile.periods);
         let model = ContactModel::with_profile(&p, Arc::new(profile), 1).no_load_speed_m_s();
         let plant = steady_speed_m_s(&p, preload_n, voltage_v, frequency_hz, 1, 0.0);

@@ -128,12 +128,14 @@ type V7 = SMatrix<f64, 7, 1>;
 /// The normal contact force over one settled period.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ContactProfile {
-    /// Mean contact force over fine step i (N); step i spans φ from −π + i·2π/FINE_STEPS (modulo
-    /// one period): one whole repeating pattern (one or more periods) when the motion settled,
-    /// else [`UNSETTLED_PERIODS`] in a row.
-    pub contact_n: Vec<f64>,
-    /// Σ contact_n over the fine steps before i: any run's mean in two reads.
+    /// Σ of the mean contact force over the fine steps before i (N·steps): any run's mean in two
+    /// reads ([`Self::contact_n`] for the steps themselves). The fine steps cover one whole
+    /// repeating pattern (one or more periods) when the motion settled, else
+    /// [`UNSETTLED_PERIODS`] in a row. Only the sums are kept: the gap workflow holds ten
+    /// thousand profiles, and fresh memory for them was a twentieth of its time.
     prefix_n: Vec<f64>,
+    mean_contact_n: f64,
+    contact_fraction: f64,
     /// Per base step (each [`FINE`] fine steps), which of its halves, quarters, ... the orbit may
     /// take whole ([`even_force`]): bit `2^level − 1 + k` for the k-th run of `FINE >> level`.
     even: Vec<u16>,
@@ -284,8 +286,10 @@ impl ContactProfile {
                 bits
             })
             .collect();
+        let fine_steps = contact_n.len() as f64;
         let mut profile = ContactProfile {
-            contact_n,
+            mean_contact_n: contact_n.iter().sum::<f64>() / fine_steps,
+            contact_fraction: contact_n.iter().filter(|f| **f > 0.0).count() as f64 / fine_steps,
             prefix_n,
             even,
             leaves: Vec::new(),
@@ -297,7 +301,7 @@ impl ContactProfile {
             periods,
         };
         let mut leaves = Vec::new();
-        for start in (0..profile.contact_n.len()).step_by(FINE) {
+        for start in (0..profile.fine_steps()).step_by(FINE) {
             profile.lay_out(start, FINE, &mut leaves);
         }
         profile.leaves = leaves;
@@ -311,7 +315,9 @@ impl ContactProfile {
             self.lay_out(start, len / 2, leaves);
             self.lay_out(start + len / 2, len / 2, leaves);
         } else {
-            leaves.push(Leaf { start, len, contact_n: self.mean_n(start, len) });
+            // Runs of a base step within a few thousand fine steps: both fit in 32 bits.
+            let (start_u32, len_u32) = (start as u32, len as u32);
+            leaves.push(Leaf { start: start_u32, len: len_u32, contact_n: self.mean_n(start, len) });
         }
     }
 
@@ -330,14 +336,25 @@ impl ContactProfile {
         self.even.get(start / FINE).is_some_and(|bits| bits & (1 << bit) != 0)
     }
 
+    /// Fine steps the profile covers ([`FINE_STEPS`] a period).
+    pub fn fine_steps(&self) -> usize {
+        self.prefix_n.len().saturating_sub(1)
+    }
+
+    /// Mean contact force over fine step i (N); step i spans φ from −π + i·2π/FINE_STEPS (modulo
+    /// one period). From the kept sums: to their rounding (1e-13 N at 40 N).
+    pub fn contact_n(&self) -> Vec<f64> {
+        self.prefix_n.windows(2).map(|w| w[1] - w[0]).collect()
+    }
+
     /// Mean contact force over the period: equals the preload's mean force (eq. 12).
     pub fn mean_contact_n(&self) -> f64 {
-        self.contact_n.iter().sum::<f64>() / self.contact_n.len() as f64
+        self.mean_contact_n
     }
 
     /// Share of the period in which the foot presses.
     pub fn contact_fraction(&self) -> f64 {
-        self.contact_n.iter().filter(|f| **f > 0.0).count() as f64 / self.contact_n.len() as f64
+        self.contact_fraction
     }
 }
 
@@ -543,8 +560,8 @@ pub struct ContactModel {
 /// One step of a carriage's orbit: fine steps `start..start + len` and their mean contact force.
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Leaf {
-    start: usize,
-    len: usize,
+    start: u32,
+    len: u32,
     contact_n: f64,
 }
 
@@ -669,14 +686,14 @@ impl ContactModel {
     /// steps; with it 2.018).
     fn period(&self, v0: f64, layer: Layer, load_n: f64) -> (f64, f64, f64, Layer) {
         let mut run = Run { v: v0, layer, sum: 0.0, lo: v0, hi: v0 };
-        let n = self.profile.contact_n.len();
+        let n = self.profile.fine_steps();
         // Where neither the layer's turn nor a breakaway can halve a step, the steps are the
         // profile's own ([`ContactProfile::lay_out`], the same halving as `step`'s).
         let longest_s = self.scales[FINE_LEVEL].dt_s;
         if !self.all_fine && !self.split_at_breakaway && self.layer_rad_s * longest_s <= SPLIT_LAYER_TURN_RAD
         {
             for leaf in &self.profile.leaves {
-                self.take(&mut run, leaf.start, leaf.len, leaf.contact_n, load_n, false);
+                self.take(&mut run, leaf.start as usize, leaf.len as usize, leaf.contact_n, load_n, false);
             }
         } else {
             for start in (0..n).step_by(FINE) {
