@@ -2,6 +2,7 @@
 //! (constant speed and with the slider's inertia), the effect library, and the root finder they
 //! share.
 pub mod contact_friction;
+pub mod contact_profile;
 pub mod effects;
 pub mod params;
 pub mod plant;
