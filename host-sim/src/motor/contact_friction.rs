@@ -21,7 +21,7 @@ pub struct FrictionLaw {
 
 /// A step's length and the carriage's mass with what the law's implicit updates take from them,
 /// computed once per step length: every step of the steady model's orbits (hundreds of millions
-/// in a gap analysis) divided by them five to seven times, and divisions were most of a step.
+/// in a gap analysis) divided by them five to seven times, a quarter of an orbit's time.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct StepScale {
     pub dt_s: f64,
