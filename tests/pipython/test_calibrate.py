@@ -6,35 +6,46 @@ three hanging weights, 0, 0.3 and 0.6 N, each a restart of the board), the model
 fits the firmware's parameter file to what it measured (`host-sim gap`), and `host-sim calibrate
 --tune` uploads the fit (`SPA`), its λ chosen first by simulating the board on the fitted model.
 Before and after, PIPython's `datarectools.Datarecorder` records the same 1 mm move (table 1 the
-commanded position, table 2 the position error, trigger: the move command) and the peak following
-error is read from the recorded error. The issue asks for it to
-be at most half of before. Measured on `mu_rail` (Nov 2026, each a full run: `serve` is paced to
-the wall clock, so when each command lands varies, and with it the board's measurements, the fit
-and the moves; one move's peak varies up to 2x within a run): 1.9x to 3.9x over eight runs, then
-1.15x to 3.0x over six (one of them a CI run at 1.34x). The issue's 2x is the typical result,
-not a sure one. CI holds MIN_RATIO = 1.0: calibration must not make the board worse (the issue
-measured it doing so, 1.54 -> 1.82 um, with the constant-speed base). `payload` measured 1.6x and 1.9x,
-`stator` 1.4x and 1.8x (uploading the truth itself: 3.6x; the fit's lambda and rho come back
-3-6 % off), `rail` 2.5x to 3.7x over four runs and `mu_high_rail` 2.1x to 3.1x over five; only
-`mu_rail` is in CI (see docs/model-gap.md). All of that was without `--tune`; with it (Nov 27, one
-full run each unless said): `mu_rail` 2.7x, 3.8x, 3.1x, 2.5x, 2.06x, 3.0x and 4.1x (the last four CI), `stator`
-3.2x and 1.85x, `payload` 2.0x and 2.5x, `rail` 2.9x, `mu_high_rail` 3.1x: 12 of 13 at 2x or more.
+commanded position, table 2 the position error, trigger: the move command), MOVES times, and the
+mean peak following error is read from the recorded errors. The issue asks for it to be at most
+half of before on the `mu_rail` truth and two others of our choice.
+
+Which truths can be halved at all: uploading the truth itself (`calibrate --params TRUTH`, no fit)
+leaves the 1 kg carriage's moves at 330-550 nm, its start-up lag, so a truth is only a test of the
+calibration if its uncalibrated moves are well over twice that. Measured over GCS (ten 1 mm moves
+each, Nov 27): before -> truth uploaded `mu_rail` 1013 -> 376 nm (2.7x), `rail` 1038 -> 372 (2.8x),
+`stator_rail` 1605 -> 394 (4.1x), `mu_high_rail` 871 -> 376 (2.3x), `stator` 1244 -> 549 (2.3x),
+0.3 N guide alone 718 -> 331 (2.2x), mu 20 % low alone 507 -> 329 (1.5x). The guide's friction,
+which the uncalibrated controller meets unannounced in every move, is what a calibration pays
+most for. The two others chosen: `rail` and `stator_rail`.
+
+Measured with `--tune` and MOVES = 5 (Nov 27, each a full run: `serve` is paced to the wall clock,
+so when each command lands varies, and with it the board's measurements, the fit and the moves):
+`mu_rail` 3.4x, 3.15x, 2.7x, 3.7x; `rail` 2.7x, 2.5x, 2.4x, 3.1x; `stator_rail` 3.6x, 4.0x:
+all at 2x or more. `mu_high_rail` 1.86x and 2.1x, at its ceiling. One move's peak varies up to
+2x within a run, hence five moves, not one. CI runs the
+three at MIN_RATIO = 1.5: a bound with room for the run-to-run spread, not the issue's 2x; the
+runs above are the evidence for that (docs/model-gap.md has every run since the first).
 
 Why that much measuring: the characteristic at 60, 80 and 100 V x 1.2, 1.7 and 2.2 kHz, both
 senses without a weight and +x under each weight (36 rows) separates the base parameters (mu
 scales the stall force, lambda the no-load speed, rho the curve's shape with the drive) from a
 guide's friction (a constant force: the same shift at every drive) and a payload (the carriage's
-mass: its ripple within a period changes the speed with the frequency).
+mass: its ripple within a period changes the speed with the frequency). One preload is enough
+here: the contact base fits the guide's 0.4 N at 0.385-0.389 N on the four runs above. (A second
+preload run, 12 N unloaded, as `calibrate_e2e` needs for the heavy carriage's constant-speed base,
+was tried once on `mu_rail`, `stator` and `payload` with three moves: 1.85x, 1.6x, 1.8x, no better.)
 
 Truths (all on the default carriage, 16 N, the firmware built for prototype.toml as it is):
 - `mu_rail`: mu 20 % low and 0.4 N of Coulomb friction in the guide (the issue's);
 - `stator`: lambda 15 % low and rho 10 % high (a stack and stator that differ from the datasheet);
 - `payload`: a carriage of 2 kg, told 1 kg, and mu 15 % high.
 - `rail`: 0.6 N of Coulomb friction in the guide, nothing else;
-- `mu_high_rail`: mu 15 % high and 0.5 N of Coulomb friction in the guide.
+- `mu_high_rail`: mu 15 % high and 0.5 N of Coulomb friction in the guide;
+- `stator_rail`: lambda 10 % low and 0.5 N of Coulomb friction in the guide.
 
 Run: python3 tests/pipython/test_calibrate.py [path/to/host-sim] [truth ...]   (exit 0 = pass;
-CI runs `mu_rail`, the default without a truth named is all five)
+CI runs `mu_rail rail stator_rail`, the default without a truth named is all six)
 """
 import json
 import os
@@ -57,8 +68,8 @@ TARGET_MM = 1.0
 RECORD_S = 1.2  # each recording spans this long: the 1 mm move settles in about 0.45 s
 SERVO_S = 1e-4  # the controller's update time
 LOADS = ["0", "0.3", "0.6"]
-MOVES = 3
-MIN_RATIO = 1.0
+MOVES = 5
+MIN_RATIO = 1.5
 # (section, key, value) changes of the firmware's file, and effects appended.
 TRUTHS = {
     "mu_rail": ([("friction", "mu_dynamic", 0.28), ("friction", "mu_static", 0.32)],
@@ -67,6 +78,7 @@ TRUTHS = {
     "payload": ([("slider", "mass_kg", 2.0), ("friction", "mu_dynamic", 0.4025),
                  ("friction", "mu_static", 0.46)], ""),
     "rail": ([], "[effects.rail_friction]\nrail_coulomb_n = 0.6\n"),
+    "stator_rail": ([("stator", "tangential_scale", 0.18)], "[effects.rail_friction]\nrail_coulomb_n = 0.5\n"),
     "mu_high_rail": ([("friction", "mu_dynamic", 0.4025), ("friction", "mu_static", 0.46)],
                      "[effects.rail_friction]\nrail_coulomb_n = 0.5\n"),
 }
