@@ -137,7 +137,7 @@ pub fn run(p: &Params, args: &CalibrateOptions) -> Result<()> {
              moves out (0.5, 1, 2 mm; nm)",
             t.preload_n
         );
-        println!("{:>10} {:>10} {:>14}", "λ", "mean", "with next");
+        println!("{:>10} {:>10} {:>14} {:>8}", "λ", "mean", "with next", "± se");
         for g in &t.grid {
             let mark = if g.lambda == t.chosen_lambda {
                 "  <- uploaded"
@@ -146,7 +146,16 @@ pub fn run(p: &Params, args: &CalibrateOptions) -> Result<()> {
             } else {
                 ""
             };
-            println!("{:>10.5} {:>10.0} {:>14.0}{mark}", g.lambda, g.mean_peak_nm, g.neighbourhood_nm);
+            println!(
+                "{:>10.5} {:>10.0} {:>14.0} {:>8.0}{mark}",
+                g.lambda, g.mean_peak_nm, g.neighbourhood_nm, g.neighbourhood_se_nm
+            );
+        }
+        if t.kept_fitted {
+            println!(
+                "no λ beat the fitted one by more than two standard errors of the moves' spread: \
+                 the fitted λ goes up"
+            );
         }
     }
     println!("{:<8} {:<40} {:>14} {:>14}", "id", "parameter", "sent", "read back");
