@@ -27,11 +27,12 @@ const LAMBDA_SHARES: [f64; 9] = [0.97, 0.98, 0.99, 1.0, 1.01, 1.02, 1.03, 1.04, 
 const FITTED: usize = 3;
 
 /// Another λ goes up only when its neighbourhood beats the fitted λ's by more than this many
-/// standard errors of the difference: one move's peak varies by up to 2× from the start phase,
-/// so over the 72 moves of a neighbourhood the means still differ by 5–10 % by chance. On one
-/// `mu_high_rail` fit the grid's lowest λ (0.97×) won by such a margin (the simulated board's
-/// means were 336–424 nm over 0.97–1.01×), and on the truth's board it ran a quarter worse than
-/// the fitted λ (471 against 380 nm). Two: a move by chance past a real tie in about 2 % of runs.
+/// standard errors of the difference: one move's peak varies by up to 2× from move to move, and
+/// on three fitted files the neighbourhoods' standard errors came to 2–5 % of their means
+/// (6–21 nm). On one `mu_high_rail` fit the grid's lowest λ (0.97×) had won by such a margin
+/// (the simulated board's means were 336–424 nm over 0.97–1.01×); on the truth's board, in SIL,
+/// it ran 471 nm against 380 with the fitted λ over twelve moves. Two: a move by chance past a
+/// real tie in about 2 % of runs (one-sided, normal errors).
 const SIGNIFICANCE: f64 = 2.0;
 
 /// Waits (ms) before each move of a pattern: the same moves after other waits start at other
