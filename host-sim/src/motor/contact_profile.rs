@@ -82,7 +82,6 @@ pub struct ContactProfile {
     /// [`UNSETTLED_PERIODS`] in a row. Only the sums are kept: the gap workflow holds ten
     /// thousand profiles, and fresh memory for them was a twentieth of its time.
     prefix_n: Vec<f64>,
-    mean_contact_n: f64,
     contact_fraction: f64,
     /// Per base step (each [`FINE`] fine steps), which of its halves, quarters, ... the orbit may
     /// take whole ([`even_force`]): bit `2^level − 1 + k` for the k-th run of `FINE >> level`.
@@ -236,7 +235,6 @@ impl ContactProfile {
             .collect();
         let fine_steps = contact_n.len() as f64;
         let mut profile = ContactProfile {
-            mean_contact_n: contact_n.iter().sum::<f64>() / fine_steps,
             contact_fraction: contact_n.iter().filter(|f| **f > 0.0).count() as f64 / fine_steps,
             prefix_n,
             even,
@@ -297,7 +295,7 @@ impl ContactProfile {
 
     /// Mean contact force over the period: equals the preload's mean force (eq. 12).
     pub fn mean_contact_n(&self) -> f64 {
-        self.mean_contact_n
+        self.prefix_n.last().copied().unwrap_or(0.0) / self.fine_steps().max(1) as f64
     }
 
     /// Share of the period in which the foot presses.
