@@ -188,10 +188,15 @@ impl ThrustModel {
 
     /// Contact force at angle φ from the top of the ellipse (eq. 15 in physics.md's form).
     pub fn contact_force_n(&self, phi: f64) -> f64 {
+        self.contact_force_at_cos_n(phi.cos())
+    }
+
+    /// [`Self::contact_force_n`] from cos φ (for a caller that needs the cosine too).
+    pub fn contact_force_at_cos_n(&self, cos_phi: f64) -> f64 {
         if self.full_contact() {
-            self.preload_n + self.kc_yc_n * phi.cos()
+            self.preload_n + self.kc_yc_n * cos_phi
         } else {
-            (self.kc_yc_n * (phi.cos() - self.half_cos)).max(0.0)
+            (self.kc_yc_n * (cos_phi - self.half_cos)).max(0.0)
         }
     }
 
@@ -208,7 +213,11 @@ impl ThrustModel {
     /// Partial contact with φp < θc/2 is eq. (22); φp ≥ θc/2 (the whole contact arc drives),
     /// full contact, and reverse motion or `v > ω·Xc` follow from the same integral (19).
     pub fn thrust_n(&self, speed_m_s: f64) -> f64 {
-        let phi_p = self.drive_half_angle(speed_m_s);
+        self.thrust_at_half_angle_n(speed_m_s, self.drive_half_angle(speed_m_s))
+    }
+
+    /// [`Self::thrust_n`] with the drive half-angle `phi_p` of `speed_m_s` already known.
+    pub fn thrust_at_half_angle_n(&self, speed_m_s: f64, phi_p: f64) -> f64 {
         let r = self.mu * self.kc_yc_n; // ℜ = μ·kc·Yc
         let wx = self.foot_speed_m_s;
         if self.full_contact() {

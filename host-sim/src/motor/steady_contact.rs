@@ -290,13 +290,17 @@ impl ContactModel {
         let v = run.v;
         let foot_m_s = self.foot_peak_m_s * self.cos_end[(start + len - 1) % FINE_STEPS];
         // The guide's friction is symmetric in the sense, so it reads the same along the drive.
+        // μ's factor only where the foot presses: no step reads it without contact, and the
+        // Stribeck factor's exp is a step's dearest part.
         let (rail_n, mu_scale) = if self.plain {
             (0.0, 1.0)
-        } else {
+        } else if fc > 0.0 {
             (
                 self.effects.rail_force_on_slider_n(v),
                 self.preload_factor * self.effects.stribeck_factor(foot_m_s - v),
             )
+        } else {
+            (self.effects.rail_force_on_slider_n(v), 1.0)
         };
         let external_n = -load_n - self.guide_n_s_per_m * v + rail_n;
         let input = StepInput {

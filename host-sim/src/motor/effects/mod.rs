@@ -95,26 +95,30 @@ impl EffectModel {
 
     /// Mean thrust of the foot on a slider at `v` (drive direction), with Stribeck if present.
     pub fn thrust_n(&self, speed_m_s: f64) -> f64 {
-        let f = self.base.thrust_n(speed_m_s);
         if self.stribeck_rise == 0.0 {
-            return f;
+            return self.base.thrust_n(speed_m_s);
         }
-        f + self.stribeck_rise * self.base.mu * self.stribeck_integral(speed_m_s)
+        // The drive half-angle once for both parts: its acos was a tenth of a Stribeck thrust.
+        let phi_p = self.base.drive_half_angle(speed_m_s);
+        let f = self.base.thrust_at_half_angle_n(speed_m_s, phi_p);
+        f + self.stribeck_rise * self.base.mu * self.stribeck_integral(speed_m_s, phi_p)
     }
 
-    /// (1/2π)∮ Fc(φ)·sign(slip)·exp(−(slip/vs)²) dφ over the contact arc, slip = ωX·cos φ − v.
-    fn stribeck_integral(&self, v: f64) -> f64 {
+    /// (1/2π)∮ Fc(φ)·sign(slip)·exp(−(slip/vs)²) dφ over the contact arc, slip = ωX·cos φ − v;
+    /// `phi_p` is the drive half-angle of `v`, where the slip changes sign.
+    fn stribeck_integral(&self, v: f64, phi_p: f64) -> f64 {
         let m = &self.base;
         let wx = m.foot_speed_m_s;
         let half = if m.full_contact() { PI } else { 0.5 * m.contact_angle_rad };
         if half <= 0.0 {
             return 0.0;
         }
-        let phi_p = m.drive_half_angle(v);
         let vs = self.stribeck_speed_m_s;
         let g = |phi: f64| {
-            let slip = wx * phi.cos() - v;
-            let fc = m.contact_force_n(phi);
+            // One cosine per node for the slip and the contact force.
+            let cos_phi = phi.cos();
+            let slip = wx * cos_phi - v;
+            let fc = m.contact_force_at_cos_n(cos_phi);
             fc * slip.signum() * (-(slip / vs).powi(2)).exp()
         };
         // Symmetric arc: twice the integral over [0, half], split where the slip changes sign.
