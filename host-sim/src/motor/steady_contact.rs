@@ -20,7 +20,9 @@
 //!    the plant takes (`contact_friction`), on steps halved where the contact or the interface
 //!    changes (see [`ContactModel::period`]). The periodic speed `v(T) = v(0)` is found by
 //!    regula falsi on `v(0)`, the layer carried over from a first period. The thrust model's
-//!    speed is its mean.
+//!    speed is its mean. Where the period map jumps across `v(T) = v(0)` (a stick–slip event
+//!    that moves by a step as `v(0)` changes) no start repeats: the carriage alternates
+//!    between the jump's two sides, and the speed is their mix whose drifts cancel.
 //!
 //! The parameter file's effects enter as the plant applies them: the drive gain of
 //! `amplifier_rolloff` / `stator_resonance` on the voltage, `hertz_contact` in `kc`, the foot's
@@ -58,6 +60,45 @@ pub const ROOT_TOLERANCE: f64 = 1e-6;
 /// difference off the full search's by 1.2e-4 of itself at the median, 1.6 % at the 99th
 /// percentile, 4.8 % at worst (without the check: 290 %, at 5 N where impacts change pattern).
 const ONE_SECANT_CONVERGED: f64 = 0.1;
+/// The steepest the excess `v(T) − v(0)` falls with `v(0)`: a carriage that starts faster does
+/// not end the period slower (its speeds cannot cross), so the slope is at least −1. A
+/// bracket's last slope across a kink of the period map, within the tolerance, can read −400;
+/// kept as a hint, such a slope took the next search's secant steps nowhere (10 428 of the
+/// gap bench's 17 450 bracketed searches failed their first secant step).
+const STEEPEST_SLOPE: f64 = -1.0;
+
+/// A bracket across which the excess falls faster than this holds a jump of the period map (no
+/// continuous excess falls faster than [`STEEPEST_SLOPE`]): a stick–slip event that moves by a
+/// step as the start speed changes. The gap bench's bracketed searches met jumps of tens to
+/// hundreds of tolerances across zero, where regula falsi crept to the tolerance for four to
+/// eight periods more.
+const JUMP_SLOPE: f64 = 2.0 * STEEPEST_SLOPE;
+
+/// Where the excess jumps across zero, the bracket is halved down to this many tolerances.
+const JUMP_BRACKET: f64 = 4.0;
+
+/// A point of the excess evaluated in a search: the start speed, the excess, the period.
+#[derive(Debug, Clone, Copy)]
+struct Side {
+    x: f64,
+    e: f64,
+    orbit: Orbit,
+}
+
+/// The orbit where the excess jumps across zero between `a` (above zero) and `b` (below): no
+/// start repeats itself there, and the carriage's periods alternate between the two sides in
+/// the shares whose drifts cancel (`a.e·s_a + b.e·s_b = 0`). Returns that mix's mean speed and
+/// ripple (the larger) and its start speed.
+fn mixed(a: &Side, b: &Side) -> (Orbit, f64) {
+    let share_a = -b.e / (a.e - b.e);
+    let share_b = 1.0 - share_a;
+    let orbit = Orbit {
+        mean_speed_m_s: share_a * a.orbit.mean_speed_m_s + share_b * b.orbit.mean_speed_m_s,
+        ripple_m_s: a.orbit.ripple_m_s.max(b.orbit.ripple_m_s),
+    };
+    (orbit, share_a * a.x + share_b * b.x)
+}
+
 /// How far from rest a period's start speed is searched, in the foot's peak speeds (first ±4×,
 /// see [`ContactModel::orbit_near`]).
 const WIDEST_BRACKET: f64 = 64.0;
@@ -334,11 +375,12 @@ impl ContactModel {
     /// [`Self::orbit`] searched from `hint` (a nearby solution's start, e.g. the same point with
     /// other friction), the friction layer starting from the hint's: secant steps from its start
     /// speed where it knows its slope, else (or when they leave its branch) a bracket from the
-    /// points the steps evaluated on either side of the root, or 2 % of the foot's peak speed
-    /// about the hint (or the one side found), widened fourfold until it holds the root. Returns the
-    /// orbit and where it starts. The root is the same as from the full bracket (to
-    /// [`Self::with_root_tolerance`] of the foot's peak speed); only the periods spent finding it
-    /// are fewer.
+    /// points the steps evaluated on either side of the root, or about the one side found (twice
+    /// its excess over the hint's slope) or the hint (2 % of the foot's peak speed), widened
+    /// fourfold until it holds the root. Returns the orbit and where it starts. The root is the
+    /// same as from the full bracket (to [`Self::with_root_tolerance`] of the foot's peak speed,
+    /// or, where the excess jumps across zero, the jump to [`JUMP_BRACKET`] tolerances); only
+    /// the periods spent finding it are fewer.
     pub fn orbit_near(&self, load_n: f64, hint: Option<OrbitStart>) -> Option<(Orbit, OrbitStart)> {
         self.orbit_search(load_n, hint, &[])
     }
@@ -370,8 +412,11 @@ impl ContactModel {
         };
         // The orbit's start: its speed, the layer at the end of the last period evaluated, and
         // the excess' slope.
-        let start_at =
-            |v0_m_s: f64, slope: f64| OrbitStart { v0_m_s, layer: carried.get().unwrap_or_default(), slope };
+        let start_at = |v0_m_s: f64, slope: f64| OrbitStart {
+            v0_m_s,
+            layer: carried.get().unwrap_or_default(),
+            slope: slope.max(STEEPEST_SLOPE),
+        };
         let tol = self.root_tolerance * w;
         // With a nearby solution's slope, secant steps from its start: the excess is close to
         // linear there, and two or three periods find the root. Each step's slope must stay
@@ -379,17 +424,17 @@ impl ContactModel {
         // where friction weakens with speed), else the bracketed search below runs.
         // The points the secant steps evaluated, nearest the root from each side (the excess
         // falls with v(0)): where the steps leave their branch, the bracket starts from them.
-        let (mut below, mut above) = (None::<(f64, f64)>, None::<(f64, f64)>);
-        let mut seen = |x: f64, e: f64| {
-            if e > 0.0 && below.is_none_or(|(b, _)| x > b) {
-                below = Some((x, e));
-            } else if e < 0.0 && above.is_none_or(|(a, _)| x < a) {
-                above = Some((x, e));
+        let (mut below, mut above) = (None::<Side>, None::<Side>);
+        let mut seen = |x: f64, e: f64, orbit: Orbit| {
+            if e > 0.0 && below.is_none_or(|b| x > b.x) {
+                below = Some(Side { x, e, orbit });
+            } else if e < 0.0 && above.is_none_or(|a| x < a.x) {
+                above = Some(Side { x, e, orbit });
             }
         };
         if let Some(h) = hint.filter(|h| h.v0_m_s.is_finite() && h.slope < 0.0) {
             let (mut x0, (mut e0, mut orbit)) = (h.v0_m_s, excess(h.v0_m_s));
-            seen(x0, e0);
+            seen(x0, e0, orbit);
             let mut slope = h.slope;
             // The last step's point is tested too: a search that ended on an orbit without
             // looking at it fell back to the bracket (a third of the gap bench's searches).
@@ -405,7 +450,7 @@ impl ContactModel {
                     break;
                 }
                 let (e1, o1) = excess(x1);
-                seen(x1, e1);
+                seen(x1, e1, o1);
                 let s1 = (e1 - e0) / (x1 - x0);
                 if !same_branch(s1, h.slope) {
                     // Near the root the secant's slope is the period map's roughness, not a
@@ -420,96 +465,104 @@ impl ContactModel {
             }
         }
         let (lo, hi) = (-4.0 * w, 4.0 * w);
-        let ((mut a, mut ea), (mut b, mut eb)) = match hint_v0.filter(|h| h.is_finite() && *h > lo && *h < hi)
-        {
+        let side = |x: f64| {
+            let (e, orbit) = excess(x);
+            Side { x, e, orbit }
+        };
+        let (mut a, mut b) = match hint_v0.filter(|h| h.is_finite() && *h > lo && *h < hi) {
             Some(h) => {
                 // Widened about the side the secant found, else about the hint (also where its
                 // two sides are out of order: the map is not monotone there).
                 let (below, above) = match (below, above) {
-                    (Some(a), Some(b)) if a.0 >= b.0 => (None, None),
+                    (Some(a), Some(b)) if a.x >= b.x => (None, None),
                     sides => sides,
                 };
                 let c = match (below, above) {
-                    (Some((x, _)), None) | (None, Some((x, _))) => x,
+                    (Some(known), None) | (None, Some(known)) => known.x,
                     _ => h,
                 };
+                // One side known: the root is about its excess over the hint's slope away (twice
+                // that, then widened fourfold), not a fixed 2 % of the foot's speed away.
                 let mut half = 0.02 * w;
-                let (mut a, mut ea) = below.unwrap_or_else(|| {
-                    let a = (c - half).max(lo);
-                    (a, excess(a).0)
-                });
-                let (mut b, mut eb) = above.unwrap_or_else(|| {
-                    let b = (c + half).min(hi);
-                    (b, excess(b).0)
-                });
-                while (ea <= 0.0 && a > lo) || (eb >= 0.0 && b < hi) {
+                if let ((Some(known), None) | (None, Some(known)), Some(s)) =
+                    ((below, above), hint.map(|h| h.slope).filter(|s| *s < 0.0))
+                {
+                    half = (2.0 * known.e.abs() / s.max(STEEPEST_SLOPE).abs()).clamp(4.0 * tol, half);
+                }
+                let mut a = below.unwrap_or_else(|| side((c - half).max(lo)));
+                let mut b = above.unwrap_or_else(|| side((c + half).min(hi)));
+                while (a.e <= 0.0 && a.x > lo) || (b.e >= 0.0 && b.x < hi) {
                     half *= 4.0;
-                    if ea <= 0.0 && a > lo {
-                        a = (c - half).max(lo);
-                        ea = excess(a).0;
+                    if a.e <= 0.0 && a.x > lo {
+                        a = side((c - half).max(lo));
                     }
-                    if eb >= 0.0 && b < hi {
-                        b = (c + half).min(hi);
-                        eb = excess(b).0;
+                    if b.e >= 0.0 && b.x < hi {
+                        b = side((c + half).min(hi));
                     }
                 }
-                ((a, ea), (b, eb))
+                (a, b)
             }
-            None => ((lo, excess(lo).0), (hi, excess(hi).0)),
+            None => (side(lo), side(hi)),
         };
         // A light carriage's speed ripples within a period by more than the foot's peak speed
         // (0.3 kg at 17 N, 60 V, 0.9 kHz against 4.17 N: from −5.5 to +1.5 mm/s about a mean of
         // −1.78, the foot's peak 1.1), so a period's start speed can lie beyond ±4×: the bracket
         // widens further, doubling, before there is no orbit. A bracket that held at ±4× is
         // left as it was (the same root as before).
-        while ea <= 0.0 && a > -WIDEST_BRACKET * w {
-            a = (2.0 * a.min(-w)).max(-WIDEST_BRACKET * w);
-            ea = excess(a).0;
+        while a.e <= 0.0 && a.x > -WIDEST_BRACKET * w {
+            a = side((2.0 * a.x.min(-w)).max(-WIDEST_BRACKET * w));
         }
-        while eb >= 0.0 && b < WIDEST_BRACKET * w {
-            b = (2.0 * b.max(w)).min(WIDEST_BRACKET * w);
-            eb = excess(b).0;
+        while b.e >= 0.0 && b.x < WIDEST_BRACKET * w {
+            b = side((2.0 * b.x.max(w)).min(WIDEST_BRACKET * w));
         }
-        if ea <= 0.0 || eb >= 0.0 {
+        if a.e <= 0.0 || b.e >= 0.0 {
             return None;
         }
         // Regula falsi (Illinois) on the falling excess, stopped when a step moves v(0) by less
         // than the tolerance, or when the excess at the point evaluated is so small that the
         // bracket's own slope (the excesses as evaluated, not as Illinois scales them) puts the
-        // root within the tolerance of it: the last point evaluated is then the orbit.
+        // root within the tolerance of it: the last point evaluated is then the orbit. Where
+        // the excess falls across the bracket faster than any continuous excess can
+        // ([`JUMP_SLOPE`]), it jumps across zero inside: halved down to [`JUMP_BRACKET`]
+        // tolerances, the orbit is the mix of its ends ([`mixed`]).
         let mut last = f64::NAN;
-        let mut side = 0i8;
-        let (mut raw_a, mut raw_b) = (ea, eb);
+        let mut illinois = 0i8;
+        let (mut scaled_a, mut scaled_b) = (a.e, b.e);
         for i in 0..60 {
-            let mut m = (a * eb - b * ea) / (eb - ea);
-            if !(m > a && m < b) || i % 8 == 7 {
-                m = 0.5 * (a + b);
+            let slope = (b.e - a.e) / (b.x - a.x);
+            let jump = slope < JUMP_SLOPE;
+            if jump && b.x - a.x < JUMP_BRACKET * tol {
+                let (orbit, v0_m_s) = mixed(&a, &b);
+                return Some((orbit, start_at(v0_m_s, slope)));
+            }
+            let mut m = (a.x * scaled_b - b.x * scaled_a) / (scaled_b - scaled_a);
+            if jump || !(m > a.x && m < b.x) || i % 8 == 7 {
+                m = 0.5 * (a.x + b.x);
             }
             let (em, orbit) = excess(m);
-            let slope = (raw_b - raw_a) / (b - a);
-            if (m - last).abs() < tol || b - a < tol || em.abs() < slope.abs() * tol {
+            if (m - last).abs() < tol || b.x - a.x < tol || em.abs() < slope.abs() * tol {
                 return Some((orbit, start_at(m, slope)));
             }
             last = m;
             if em > 0.0 {
-                raw_a = em;
-                (a, ea) = (m, em);
-                if side == 1 {
-                    eb *= 0.5;
+                a = Side { x: m, e: em, orbit };
+                scaled_a = em;
+                if illinois == 1 {
+                    scaled_b *= 0.5;
                 }
-                side = 1;
+                illinois = 1;
             } else {
-                raw_b = em;
-                (b, eb) = (m, em);
-                if side == -1 {
-                    ea *= 0.5;
+                b = Side { x: m, e: em, orbit };
+                scaled_b = em;
+                if illinois == -1 {
+                    scaled_a *= 0.5;
                 }
-                side = -1;
+                illinois = -1;
             }
         }
-        let m = 0.5 * (a + b);
+        let m = 0.5 * (a.x + b.x);
         let orbit = excess(m).1;
-        Some((orbit, start_at(m, (raw_b - raw_a) / (b - a))))
+        Some((orbit, start_at(m, (b.e - a.e) / (b.x - a.x))))
     }
 
     /// The mean speed of the orbit near `hint` (a nearby parameter set's orbit start with its
