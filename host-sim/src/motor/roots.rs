@@ -3,8 +3,20 @@
 /// Root of a decreasing function with f(lo) ≥ 0 ≥ f(hi): Illinois (regula falsi) with a bisection
 /// guard, to a bracket of `rel_tol` of the interval.
 pub fn falling_root(f: impl Fn(f64) -> f64, lo: f64, hi: f64, rel_tol: f64) -> f64 {
+    let (f_lo, f_hi) = (f(lo), f(hi));
+    falling_root_from(f, (lo, f_lo), (hi, f_hi), rel_tol)
+}
+
+/// [`falling_root`] with `f` at the bracket's ends already known (`(lo, f(lo))`, `(hi, f(hi))`):
+/// a caller that tested the bracket does not pay for its two ends again.
+pub fn falling_root_from(
+    f: impl Fn(f64) -> f64,
+    (lo, f_lo): (f64, f64),
+    (hi, f_hi): (f64, f64),
+    rel_tol: f64,
+) -> f64 {
     let (mut a, mut b) = (lo, hi);
-    let (mut fa, mut fb) = (f(a), f(b));
+    let (mut fa, mut fb) = (f_lo, f_hi);
     if fa <= 0.0 {
         return a;
     }

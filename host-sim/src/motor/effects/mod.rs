@@ -26,7 +26,7 @@ pub mod inertia;
 pub use config::*;
 
 use crate::motor::params::Params;
-use crate::motor::roots::falling_root;
+use crate::motor::roots::falling_root_from;
 use crate::motor::steady::{OperatingPoint, ThrustModel};
 use std::f64::consts::{PI, TAU};
 
@@ -169,9 +169,13 @@ impl EffectModel {
         if near.abs() > half {
             let net = |v: f64| self.thrust_n(v) - self.resisting_n(load_n, v, sense);
             let (a, b) = (near - half, near + half);
-            if net(a) > 0.0 && net(b) < 0.0 {
-                // The full search's tolerance, 1e-11 of its first bracket (at least wx).
-                return falling_root(net, a, b, 1e-11 * wx / (b - a));
+            let net_a = net(a);
+            if net_a > 0.0 {
+                let net_b = net(b);
+                if net_b < 0.0 {
+                    // The full search's tolerance, 1e-11 of its first bracket (at least wx).
+                    return falling_root_from(net, (a, net_a), (b, net_b), 1e-11 * wx / (b - a));
+                }
             }
         }
         self.constant_speed_at_load_m_s(load_n)
@@ -182,21 +186,29 @@ impl EffectModel {
         let wx = self.base.foot_speed_m_s.max(1e-12);
         let net = |v: f64, s: f64| self.thrust_n(v) - self.resisting_n(load_n, v, s);
         let at0 = self.thrust_n(0.0);
+        // The thrust at rest and at the widened end are known here: the root finder is given
+        // them, not the thrust's closed form twice more.
         if at0 - load_n > self.rail_coulomb_n {
             // Forward: root of net(v, +1) on (0, hi].
             let mut hi = wx;
-            while net(hi, 1.0) > 0.0 && hi < 1.0 {
+            let mut net_hi = net(hi, 1.0);
+            while net_hi > 0.0 && hi < 1.0 {
                 hi *= 2.0;
+                net_hi = net(hi, 1.0);
             }
-            falling_root(|v| net(v, 1.0), 0.0, hi, 1e-11)
+            let net_0 = at0 - self.resisting_n(load_n, 0.0, 1.0);
+            falling_root_from(|v| net(v, 1.0), (0.0, net_0), (hi, net_hi), 1e-11)
         } else if at0 - load_n >= -self.rail_coulomb_n {
             0.0
         } else {
             let mut lo = -wx;
-            while net(lo, -1.0) < 0.0 && lo > -1.0 {
+            let mut net_lo = net(lo, -1.0);
+            while net_lo < 0.0 && lo > -1.0 {
                 lo *= 2.0;
+                net_lo = net(lo, -1.0);
             }
-            falling_root(|v| net(v, -1.0), lo, 0.0, 1e-11)
+            let net_0 = at0 - self.resisting_n(load_n, 0.0, -1.0);
+            falling_root_from(|v| net(v, -1.0), (lo, net_lo), (0.0, net_0), 1e-11)
         }
     }
 }
