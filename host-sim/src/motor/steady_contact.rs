@@ -415,7 +415,8 @@ impl ContactModel {
         let start_at = |v0_m_s: f64, slope: f64| OrbitStart {
             v0_m_s,
             layer: carried.get().unwrap_or_default(),
-            slope: slope.max(STEEPEST_SLOPE),
+            // Bounded, a NaN (not known) kept as it is.
+            slope: if slope < STEEPEST_SLOPE { STEEPEST_SLOPE } else { slope },
         };
         let tol = self.root_tolerance * w;
         // With a nearby solution's slope, secant steps from its start: the excess is close to
