@@ -22,7 +22,7 @@
 //! speeds), the Stribeck rise; the guide friction enters it as a constant force at the
 //! constant-speed speed.
 
-use crate::motor::roots::falling_root;
+use crate::motor::roots::{falling_root, falling_root_from};
 use crate::motor::steady::ThrustModel;
 use std::f64::consts::{PI, TAU};
 use std::sync::OnceLock;
@@ -34,6 +34,16 @@ pub const ORBIT_STEPS: usize = 128;
 fn cos_edges() -> &'static [f64; ORBIT_STEPS + 1] {
     static TABLE: OnceLock<[f64; ORBIT_STEPS + 1]> = OnceLock::new();
     TABLE.get_or_init(|| std::array::from_fn(|i| (-PI + TAU * i as f64 / ORBIT_STEPS as f64).cos()))
+}
+
+/// cos φ at the step middles, where each step's contact force is taken: the same for every row,
+/// and a row's 128 cosines were a seventh of a fit with the carriage on the constant-speed base.
+fn cos_middles() -> &'static [f64; ORBIT_STEPS] {
+    static TABLE: OnceLock<[f64; ORBIT_STEPS]> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        let dphi = TAU / ORBIT_STEPS as f64;
+        std::array::from_fn(|i| (-PI + (i as f64 + 0.5) * dphi).cos())
+    })
 }
 
 /// The orbit problem at one row: per-step grip μ·Fc, foot speeds at the step edges, the step.
@@ -53,8 +63,13 @@ impl Orbit {
         } else {
             (0..=steps).map(|i| m.foot_speed_m_s * (-PI + i as f64 * dphi).cos()).collect()
         };
+        let grip_n = if steps == ORBIT_STEPS {
+            cos_middles().iter().map(|c| m.mu * m.contact_force_at_cos_n(*c)).collect()
+        } else {
+            (0..steps).map(|i| m.mu * m.contact_force_n(-PI + (i as f64 + 0.5) * dphi)).collect()
+        };
         Orbit {
-            grip_n: (0..steps).map(|i| m.mu * m.contact_force_n(-PI + (i as f64 + 0.5) * dphi)).collect(),
+            grip_n,
             foot_m_s,
             inverse_mass_per_kg,
             step_s: 1.0 / (frequency_hz * steps as f64),
@@ -149,21 +164,26 @@ impl Orbit {
         let w = self.scale_m_s();
         let (mut lo, mut hi) = (-w, w);
         let mut tries = 0;
-        while self.heavy_excess_n(lo) < 0.0 {
+        // The ends' excesses as tested are the root finder's too.
+        let mut at_lo = self.heavy_excess_n(lo);
+        while at_lo < 0.0 {
             lo *= 2.0;
+            at_lo = self.heavy_excess_n(lo);
             tries += 1;
             if tries > 8 {
                 return None;
             }
         }
-        while self.heavy_excess_n(hi) > 0.0 {
+        let mut at_hi = self.heavy_excess_n(hi);
+        while at_hi > 0.0 {
             hi *= 2.0;
+            at_hi = self.heavy_excess_n(hi);
             tries += 1;
             if tries > 16 {
                 return None;
             }
         }
-        Some(falling_root(|v| self.heavy_excess_n(v), lo, hi, 1e-13))
+        Some(falling_root_from(|v| self.heavy_excess_n(v), (lo, at_lo), (hi, at_hi), 1e-13))
     }
 
     /// Mean speed of the periodic motion, starting the search at `guess`; `None` if there is none.
