@@ -68,13 +68,7 @@ impl Orbit {
         } else {
             (0..steps).map(|i| m.mu * m.contact_force_n(-PI + (i as f64 + 0.5) * dphi)).collect()
         };
-        Orbit {
-            grip_n,
-            foot_m_s,
-            inverse_mass_per_kg,
-            step_s: 1.0 / (frequency_hz * steps as f64),
-            load_n,
-        }
+        Orbit { grip_n, foot_m_s, inverse_mass_per_kg, step_s: 1.0 / (frequency_hz * steps as f64), load_n }
     }
 
     fn steps(&self) -> usize {
