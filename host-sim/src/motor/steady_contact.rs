@@ -335,13 +335,10 @@ impl ContactModel {
         // Stribeck factor's exp is a step's dearest part.
         let (rail_n, mu_scale) = if self.plain {
             (0.0, 1.0)
-        } else if fc > 0.0 {
-            (
-                self.effects.rail_force_on_slider_n(v),
-                self.preload_factor * self.effects.stribeck_factor(foot_m_s - v),
-            )
         } else {
-            (self.effects.rail_force_on_slider_n(v), 1.0)
+            let mu_scale =
+                if fc > 0.0 { self.preload_factor * self.effects.stribeck_factor(foot_m_s - v) } else { 1.0 };
+            (self.effects.rail_force_on_slider_n(v), mu_scale)
         };
         let external_n = -load_n - self.guide_n_s_per_m * v + rail_n;
         let input = StepInput {
