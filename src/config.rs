@@ -83,6 +83,10 @@ pub struct ControllerConfig {
     /// against the expected load (the controller's model cache). At or above
     /// `drive_freq_hz` the frequency is fixed there.
     pub drive_freq_min_hz: f32,
+    /// `*IDN?` names the board "PD-SB1 (C-867 compatible)" instead of "PD-SB1": clients that
+    /// pick their driver by PI's model name (EPICS motorPIGCS2) then take it for the PI motor
+    /// controller whose command set it answers. Off by default: the identity stays our own.
+    pub idn_c867_compatible: bool,
 }
 
 /// What referencing looks for.

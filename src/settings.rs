@@ -23,7 +23,9 @@
 //! for the previous layout (see `storage`).
 
 use crate::config::{ControllerConfig, ReferenceSignal, MAX_TRAVEL_NM};
+use crate::fastmath::fx_from_f32;
 use crate::hardware::Hardware;
+use crate::Fx;
 
 /// The first record format from the settings table (version 1 was written before it): a stored
 /// row without a `since` of its own is in every record from this one on
@@ -288,6 +290,57 @@ impl Field for ReferenceSignal {
     }
 }
 
+/// Encoder counts per mm as a fraction in lowest terms (numerator, denominator), from the
+/// encoder's nm per count: 50 nm gives 20000/1, 3 nm 1000000/3.
+pub fn counts_per_mm(nm_per_count: u32) -> (u32, u32) {
+    let (mut a, mut b) = (1_000_000u32, nm_per_count.max(1));
+    while b != 0 {
+        (a, b) = (b, a % b);
+    }
+    (1_000_000 / a, nm_per_count.max(1) / a)
+}
+
+/// The largest value a range allows.
+const fn range_top(r: Range) -> f32 {
+    match r {
+        Range::Float { hi, .. } => hi,
+        Range::Int { hi, .. } => hi as f32,
+    }
+}
+
+/// The preload at which 0x50 turns a speed into the reference drive and back: the middle of
+/// the preload window (the model's no-load speed changes little across it, physics.md §2).
+fn reference_preload_n(c: &ControllerConfig) -> f32 {
+    0.5 * (c.preload_min_n + c.preload_max_n)
+}
+
+/// 0x50 from 0x1018: the model's no-load speed (nm/s) at the reference drive amplitude and the
+/// drive frequency the search uses.
+fn reference_speed_nm_s(c: &ControllerConfig) -> f32 {
+    let pv = c.per_volt();
+    let at = pv.point(fx_from_f32(reference_preload_n(c)), fx_from_f32(c.reference_drive_v));
+    at.no_load_speed_mm_s().to_num::<f32>() * 1e6
+}
+
+/// 0x1018 from 0x50: the drive amplitude (to 0.01 V) at which the model runs at `speed_nm_s`
+/// with no load; false when the speed is not positive or even full drive is slower.
+fn set_reference_speed_nm_s(c: &mut ControllerConfig, speed_nm_s: f32) -> bool {
+    let mm_s = speed_nm_s / 1e6;
+    if !(mm_s.is_finite() && mm_s > 0.0) {
+        return false;
+    }
+    let pv = c.per_volt();
+    let preload = fx_from_f32(reference_preload_n(c));
+    let v = pv.voltage_for(preload, fx_from_f32(mm_s), Fx::ZERO, fx_from_f32(c.max_drive_v));
+    // voltage_for answers full drive when that is not enough: refuse rather than search slower
+    // than asked without saying so (1 % for the 0.01 V steps).
+    if pv.point(preload, v).no_load_speed_mm_s().to_num::<f32>() < 0.99 * mm_s {
+        return false;
+    }
+    c.reference_drive_v = v.to_num();
+    true
+}
+
 /// A row's hardware default: what `get` makes of the hardware and the rows before it (the
 /// argument types fixed here, so that a row's closure needs none).
 #[inline(always)]
@@ -338,6 +391,36 @@ macro_rules! setting {
                 Field::to_value(get(c))
             },
             set: |_: &mut ControllerConfig, _: Value| false,
+        }
+    };
+    (@check $c:ident; $id:literal, $group:literal, $name:ident : $t:ty = alias($get:ident, $set:ident, $what:literal);
+     $($rest:tt)*) => {
+        true
+    };
+    ($id:literal, $group:literal, $name:ident : $t:ty = alias($get:ident, $set:ident, $what:literal);
+     $unit:literal, $scale:literal, $range:expr, $desc:literal) => {
+        Setting {
+            id: $id,
+            name: stringify!($name),
+            group: $group,
+            description: $desc,
+            unit: $unit,
+            scale: $scale,
+            ty: <$t as Field>::TY,
+            kind: Kind::of(<$t as Field>::TY),
+            range: $range,
+            // Another row's value: nothing of its own to set, store or check.
+            default: DefaultValue::Hardware($what, |_: &Hardware, _: &mut ControllerConfig| {}),
+            keep: Keep::Volatile,
+            since: FIRST_TABLE_VERSION,
+            invalidates: Invalidates::NOTHING,
+            stored: false,
+            read_only: false,
+            get: |c: &ControllerConfig| Field::to_value($get(c)),
+            set: |c: &mut ControllerConfig, v: Value| match <$t as Field>::from_value(v) {
+                Some(x) => $set(c, x),
+                None => false,
+            },
         }
     };
     (@check $c:ident; $id:literal, $group:literal, $($f:ident).+ : $t:ty = hardware($get:expr, $what:literal);
@@ -432,6 +515,14 @@ settings! {
         "mm/s^2", 1e6, POSITIVE, Stored, "Closed-loop acceleration"),
     (0xC, "Motion", decel_max_nm_s2: f32 = 1e9;
         "mm/s^2", 1e6, POSITIVE, Stored, "Closed-loop deceleration"),
+    // PI's counts per unit (numerator 0xE over denominator 0xF): encoder counts per mm, from
+    // the encoder's resolution in lowest terms. EPICS motorPIGCS2 reads them as its resolution.
+    (0xE, "Hardware",
+        counts_per_mm_numerator: u32 = derived(|c| counts_per_mm(c.encoder_nm_per_count).0, "the encoder's resolution");
+        "", 1.0, Range::Int { lo: 1, hi: u32::MAX as i64 }, ReadOnly, "Counts per unit numerator (counts per mm)"),
+    (0xF, "Hardware",
+        counts_per_mm_denominator: u32 = derived(|c| counts_per_mm(c.encoder_nm_per_count).1, "the encoder's resolution");
+        "", 1.0, Range::Int { lo: 1, hi: u32::MAX as i64 }, ReadOnly, "Counts per unit denominator"),
     (0x15, "Motion", travel_max_nm: i64 = 50_000_000;
         "mm", 1.0, TRAVEL, Stored, "Maximum travel in positive direction"),
     (0x30, "Motion", travel_min_nm: i64 = -50_000_000;
@@ -440,6 +531,20 @@ settings! {
         "mm", 1.0, Range::Int { lo: 0, hi: MAX_TRAVEL_NM }, Stored, "Settling window"),
     (0x3F, "Servo", settle_time_s: f32 = 0.01;
         "s", 1.0, NON_NEGATIVE, Stored, "Settling time"),
+    // PI's maximum closed-loop acceleration and deceleration: the most 0xB and 0xC accept. The
+    // profile also keeps within what the thrust model allows at the measured preload (XTM?).
+    (0x4A, "Motion",
+        accel_limit_nm_s2: f32 = derived(|_| range_top(POSITIVE), "the range of 0xB");
+        "mm/s^2", 1e6, POSITIVE, ReadOnly, "Maximum closed-loop acceleration"),
+    (0x4B, "Motion",
+        decel_limit_nm_s2: f32 = derived(|_| range_top(POSITIVE), "the range of 0xC");
+        "mm/s^2", 1e6, POSITIVE, ReadOnly, "Maximum closed-loop deceleration"),
+    // PI's velocity for reference moves: the search drives open loop at 0x1018, so this is
+    // 0x1018 seen as the model's speed with no load (at the middle of the preload window);
+    // setting it sets 0x1018 (and `WPA` stores that). Refused (17) when full drive is too slow.
+    (0x50, "Referencing",
+        reference_speed_nm_s: f32 = alias(reference_speed_nm_s, set_reference_speed_nm_s, "0x1018");
+        "mm/s", 1e6, POSITIVE, "Velocity of the reference search with no load (sets 0x1018)"),
     // The top of the band gives a 0.3 kg and heavier carriage its highest speed; the DAC's band
     // is checked too.
     (0x1001, "Drive", drive_freq_hz: f32 = 2200.0;
@@ -544,6 +649,10 @@ settings! {
     (0x1023, "Supervision", encoder_loss_counts: i32 = 40;
         "counts", 1.0, Range::Int { lo: 0, hi: i16::MAX as i64 }, Stored since 6,
         "Encoder loss limit under the coarse drive (0: off)"),
+    // The identity clients see first (`*IDN?`); 0x1040 and up: the interface's settings.
+    (0x1040, "Interface", idn_c867_compatible: bool = false;
+        "", 1.0, FLAG, Stored since 7,
+        "Identify as C-867 compatible in *IDN? (0 no, 1 yes: for EPICS motorPIGCS2)"),
     // PI's SERVO_UPDATE_TIME: PIPython's data recorder tools read it (`RTR` counts these).
     (0x0E000200, "Hardware",
         servo_update_time_s: f32 = derived(|c| 1.0 / c.loop_hz.max(1) as f32, "one period of the control loop");

@@ -190,6 +190,7 @@ fn single_byte_commands() {
 #[test]
 fn hlp_lists_every_command_one_per_line() {
     let expected: &[u8] = b"The following commands are valid: \n\
+#4 Request Status Register \n\
 #5 Request Motion Status \n\
 #7 Request Controller Ready Status \n\
 #24 Stop All Axes \n\
@@ -207,12 +208,16 @@ DRR? [<StartPoint> [<NumberOfPoints> [{<RecTableID>}]]] Get Recorded Data Values
 DRT {<RecTableID> <TriggerSource> <Value>} Set Data Recorder Trigger Source \n\
 DRT? [{<RecTableID>}] Get Data Recorder Trigger Source \n\
 ERR? Get Error Number \n\
+FNL [{<AxisID>}] Fast Reference Move To Negative Limit \n\
+FPL [{<AxisID>}] Fast Reference Move To Positive Limit \n\
 FRF [{<AxisID>}] Fast Reference Move To Reference Mark \n\
 FRF? [{<AxisID>}] Get Referencing Result \n\
+HAR? [{<AxisID>}] Indicate Hard Stops For Referencing \n\
 HDR? Get All Data Recorder Options \n\
 HLP? Get List Of Available Commands \n\
 HLT [{<AxisID>}] Halt Motion Smoothly \n\
 HPA? Get List Of Available Parameters \n\
+LIM? [{<AxisID>}] Indicate Limit Switches \n\
 MOV {<AxisID> <Position>} Set Target Position \n\
 MOV? [{<AxisID>}] Get Target Position \n\
 MVR {<AxisID> <Distance>} Set Target Relative To Current Target \n\
@@ -226,14 +231,18 @@ RTR? Get Record Table Rate \n\
 SAI? [ALL] Get List Of Current Axis Identifiers \n\
 SPA {<ItemID> <PamID> <PamValue>} Set Volatile Memory Parameters \n\
 SPA? [{<ItemID> <PamID>}] Get Volatile Memory Parameters \n\
+SRG? [{<AxisID> <RegisterID>}] Query Status Register Value \n\
+SSN? Get Device Serial Number \n\
 STP Stop All Axes \n\
 SVO {<AxisID> <ServoState>} Set Servo Mode \n\
 SVO? [{<AxisID>}] Get Servo Mode \n\
 TMN? [{<AxisID>}] Get Minimum Commandable Position \n\
 TMX? [{<AxisID>}] Get Maximum Commandable Position \n\
 TNR? Get Number Of Record Tables \n\
+TRS? [{<AxisID>}] Indicate Reference Switch \n\
 VEL {<AxisID> <Velocity>} Set Closed-Loop Velocity \n\
 VEL? [{<AxisID>}] Get Closed-Loop Velocity \n\
+VER? Get Versions Of Firmware \n\
 WPA [<Password>] Save Parameters To Non-Volatile Memory (Servo Off And Idle Only) \n\
 XDA? [{<AxisID>}] Get Drive Amplitude In V Peak-To-Peak (extension) \n\
 XDF? [{<AxisID>}] Get Drive Frequency In Hz (extension) \n\
@@ -1311,7 +1320,7 @@ fn each_command_locks_the_controller_as_its_kind_says() {
                 (Pending::Line(line), text)
             }
         };
-        let expect: &[&str] = if c.name.ends_with('?') || c.name == "#5" || c.name == "#7" {
+        let expect: &[&str] = if c.name.ends_with('?') || matches!(c.name, "#4" | "#5" | "#7") {
             &["snapshot"]
         } else if settings.contains(&c.name) {
             &["snapshot", "apply_config"]

@@ -88,6 +88,21 @@ fn formatters_closed_forms() {
     assert_eq!(general(0.0), "0");
     assert_eq!(general(10.0), "10");
     assert_eq!(general(50.0 / 4095.0), "0.01221001");
+    // From 1e18 up, exponent form: f32::MAX = 340282346638528859811704183484516925440.
+    let f = |x: f32| {
+        let mut b: heapless::Vec<u8, 64> = heapless::Vec::new();
+        assert!(write_f32(&mut b, x));
+        String::from_utf8(b.to_vec()).unwrap()
+    };
+    // Rust's shortest round-trip form is the independent reference.
+    for x in [f32::MAX, f32::MAX / 1e6, 1e20, -2.5e19, 1e19, 1.234_567_8e28] {
+        assert_eq!(f(x), format!("{x:e}"));
+    }
+    assert_eq!(f(f32::MAX), "3.4028235e38");
+    // Below 1e18 a whole f32 prints all its digits (1e18 as an f32 is 999999984306749440).
+    for x in [9.9e17f32, 1e18] {
+        assert_eq!(f(x), (x as i64).to_string());
+    }
 }
 
 proptest! {
@@ -144,6 +159,19 @@ proptest! {
         // Whole numbers beyond nine digits print all their digits (no exponent notation).
         prop_assert!(significant.trim_end_matches('0').len() <= 9 || !s.contains('.'), "{}", s);
         prop_assert!(!s.ends_with('.') && (!s.contains('.') || !s.ends_with('0')), "{}", s);
+    }
+
+    #[test]
+    fn huge_f32_parameters_read_back_exactly(bits in any::<u32>(), exponent in 187u32..255) {
+        // 2^60 (1.2e18) to f32::MAX: the exponent form reads back as the same f32, nine
+        // significant digits at most.
+        let x = f32::from_bits((bits & 0x807F_FFFF) | (exponent << 23));
+        let mut b: heapless::Vec<u8, 64> = heapless::Vec::new();
+        prop_assert!(write_f32(&mut b, x));
+        let s = String::from_utf8(b.to_vec()).unwrap();
+        prop_assert_eq!(dec(&s).to_f64().unwrap() as f32, x, "{}", s);
+        let (mantissa, _) = s.trim_start_matches('-').split_once('e').unwrap();
+        prop_assert!(mantissa.replace('.', "").len() <= 9, "{}", s);
     }
 
     #[test]

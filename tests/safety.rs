@@ -216,7 +216,7 @@ fn exactly_the_queries_and_status_bytes_are_read_only() {
             line.extend_from_slice(b" 1").unwrap();
             Pending::Line(line)
         };
-        let expect = matches!(name, "#5" | "#7") || name.ends_with('?');
+        let expect = matches!(name, "#4" | "#5" | "#7") || name.ends_with('?');
         assert_eq!(Gcs::is_read_only(&pending), expect, "{name}");
     }
     // Lower case and leading blanks as the executor accepts them.

@@ -12,7 +12,7 @@ use piezo_drive::gcs::session::QUEUE_CAPACITY;
 use piezo_drive::gcs::{Gcs, LinkSession, Unshared};
 
 const HLP_FIRST: &[u8] = b"The following commands are valid: \n";
-const HLP_SECOND: &[u8] = b"#5 Request Motion Status";
+const HLP_SECOND: &[u8] = b"#4 Request Status Register";
 
 struct Rig {
     gcs: Gcs,

@@ -204,6 +204,7 @@ fn changed() -> piezo_drive::controller::ControllerConfig {
     c.rail_viscous_n_s_per_m = 2.5;
     c.drive_freq_min_hz = 900.0;
     c.encoder_loss_counts = 120;
+    c.idn_c867_compatible = true;
     c
 }
 
@@ -359,17 +360,24 @@ fn version_5_record_byte_for_byte_and_versions_4_3_and_2_still_load() {
     v5_fields.push(F(900.0)); // 0x1022 lowest drive frequency (Hz)
     let mut v6_fields = v5_fields.clone();
     v6_fields.push(I32(120)); // 0x1023 encoder loss limit (counts)
-    let expected = record(6, &v6_fields);
-    assert_eq!(VERSION, 6);
-    assert_eq!(PAYLOAD_LEN, 172);
-    assert_eq!(RECORD_LEN, 184);
+    let mut v7_fields = v6_fields.clone();
+    v7_fields.push(B(1)); // 0x1040 C-867 compatible identity
+    let expected = record(7, &v7_fields);
+    assert_eq!(VERSION, 7);
+    assert_eq!(PAYLOAD_LEN, 173);
+    assert_eq!(RECORD_LEN, 185);
     assert_eq!(storage::encode(&changed()).to_vec(), expected);
     assert_eq!(storage::decode(&expected, &controller_config()), Ok(changed()));
-    // Version 5: everything but the encoder loss limit, which comes from the defaults.
+    // Version 6: everything but the identity setting, which comes from the defaults.
     let d = controller_config();
+    let v6 = record(6, &v6_fields);
+    assert_eq!(v6.len(), 8 + 172 + 4);
+    let mut want = changed();
+    want.idn_c867_compatible = d.idn_c867_compatible;
+    assert_eq!(storage::decode(&v6, &d), Ok(want));
+    // Version 5: also the encoder loss limit from the defaults.
     let v5 = record(5, &v5_fields);
     assert_eq!(v5.len(), 8 + 168 + 4);
-    let mut want = changed();
     want.encoder_loss_counts = d.encoder_loss_counts;
     assert_eq!(storage::decode(&v5, &d), Ok(want));
     // Version 4: also the lowest drive frequency from the defaults.
@@ -448,6 +456,7 @@ fn version_1_record_still_loads() {
     (expected.rail_coulomb_n, expected.rail_viscous_n_s_per_m) = (d.rail_coulomb_n, d.rail_viscous_n_s_per_m);
     expected.drive_freq_min_hz = d.drive_freq_min_hz;
     expected.encoder_loss_counts = d.encoder_loss_counts;
+    expected.idn_c867_compatible = d.idn_c867_compatible;
     assert_eq!(storage::decode(&v1, &d), Ok(expected));
     // As read from a flash page (erased bytes after it).
     let mut page = vec![0xFFu8; 2048];
@@ -468,7 +477,8 @@ fn every_setting_is_stored_unless_read_only_and_every_default_comes_from_somewhe
     use piezo_drive::sensors::PreloadCalibration;
     use piezo_drive::settings::SETTINGS;
     for s in SETTINGS {
-        assert_eq!(s.stored, !s.read_only, "{}", s.name);
+        // An alias (another row's value in PI's units, Keep::Volatile) has nothing of its own.
+        assert_eq!(s.stored, !s.read_only && s.keep != piezo_drive::settings::Keep::Volatile, "{}", s.name);
         assert_eq!(storage::offset_of(s.id).is_some(), s.stored, "{}", s.name);
     }
     // Every field of the defaults is set by the table or the hardware, whatever it held before:
@@ -524,6 +534,7 @@ fn every_setting_is_stored_unless_read_only_and_every_default_comes_from_somewhe
         rail_coulomb_n: f,
         rail_viscous_n_s_per_m: f,
         drive_freq_min_hz: f,
+        idn_c867_compatible: true,
     };
     let a = with_defaults(&REFERENCE_BOARD, ControllerConfig::default());
     let b = with_defaults(&REFERENCE_BOARD, odd);

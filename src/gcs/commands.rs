@@ -6,15 +6,16 @@
 use super::args::no_args;
 use super::call::{Call, GcsResult, Handler, Query, QueryHandler, Settings, SettingsHandler};
 use super::framing::{is_space, Out, Pending};
-use super::info::{cst_query, csv_query, idn_query, sai_query, xlt_query};
-use super::motion::{frf, hlt, mov, mvr, pos, ron, stp, svo, xos};
+use super::info::{cst_query, csv_query, idn_query, sai_query, ssn_query, ver_query, xlt_query};
+use super::motion::{fnl, fpl, frf, hlt, mov, mvr, pos, ron, stp, svo, xos};
 use super::settings::{
     acc, acc_query, dec, dec_query, hpa_query, spa, spa_query, tmn_query, tmx_query, vel, vel_query, wpa,
 };
 use super::snapshot::{Latch, Snapshot};
 use super::state::{
-    err_query, frf_query, mov_query, ont_query, pos_query, ron_query, svo_query, xda_query, xdf_query,
-    xft_query, xpf_query, xtm_query,
+    err_query, frf_query, har_query, lim_query, mov_query, ont_query, pos_query, ron_query, srg_query,
+    status_register, svo_query, trs_query, write_register, xda_query, xdf_query, xft_query, xpf_query,
+    xtm_query,
 };
 use super::{datarec, error, Board, Gcs, MAX_TOKENS};
 use crate::controller::{Controller, ControllerConfig, FaultCode};
@@ -62,9 +63,9 @@ impl Command {
     ) -> Self {
         Command { name, syntax, help, run: Run::Settings(run) }
     }
-    /// Whether the command only reads (a query, #5, #7).
+    /// Whether the command only reads (a query, #4, #5, #7).
     pub fn is_query(&self) -> bool {
-        matches!(self.run, Run::Query(_)) || matches!(self.name, "#5" | "#7")
+        matches!(self.run, Run::Query(_)) || matches!(self.name, "#4" | "#5" | "#7")
     }
     /// Whether the command changes nothing but the settings (`SPA`, `VEL`, `ACC`, `DEC`).
     pub fn is_settings(&self) -> bool {
@@ -76,6 +77,7 @@ impl Command {
 /// modules (`info`, `motion`, `settings`, `state`, `datarec`), one handler each, named after the
 /// command (`…_query` for `…?`).
 pub static COMMANDS: &[Command] = &[
+    Command::byte("#4", "Request Status Register"),
     Command::byte("#5", "Request Motion Status"),
     Command::byte("#7", "Request Controller Ready Status"),
     Command::byte("#24", "Stop All Axes"),
@@ -108,12 +110,16 @@ pub static COMMANDS: &[Command] = &[
     ),
     Command::query("DRT?", "[{<RecTableID>}]", "Get Data Recorder Trigger Source", datarec::drt_query),
     Command::query("ERR?", "", "Get Error Number", err_query),
+    Command::line("FNL", "[{<AxisID>}]", "Fast Reference Move To Negative Limit", fnl),
+    Command::line("FPL", "[{<AxisID>}]", "Fast Reference Move To Positive Limit", fpl),
     Command::line("FRF", "[{<AxisID>}]", "Fast Reference Move To Reference Mark", frf),
     Command::query("FRF?", "[{<AxisID>}]", "Get Referencing Result", frf_query),
+    Command::query("HAR?", "[{<AxisID>}]", "Indicate Hard Stops For Referencing", har_query),
     Command::query("HDR?", "", "Get All Data Recorder Options", datarec::hdr_query),
     Command::query("HLP?", "", "Get List Of Available Commands", hlp_query),
     Command::line("HLT", "[{<AxisID>}]", "Halt Motion Smoothly", hlt),
     Command::query("HPA?", "", "Get List Of Available Parameters", hpa_query),
+    Command::query("LIM?", "[{<AxisID>}]", "Indicate Limit Switches", lim_query),
     Command::line("MOV", "{<AxisID> <Position>}", "Set Target Position", mov),
     Command::query("MOV?", "[{<AxisID>}]", "Get Target Position", mov_query),
     Command::line("MVR", "{<AxisID> <Distance>}", "Set Target Relative To Current Target", mvr),
@@ -127,14 +133,18 @@ pub static COMMANDS: &[Command] = &[
     Command::query("SAI?", "[ALL]", "Get List Of Current Axis Identifiers", sai_query),
     Command::settings("SPA", "{<ItemID> <PamID> <PamValue>}", "Set Volatile Memory Parameters", spa),
     Command::query("SPA?", "[{<ItemID> <PamID>}]", "Get Volatile Memory Parameters", spa_query),
+    Command::query("SRG?", "[{<AxisID> <RegisterID>}]", "Query Status Register Value", srg_query),
+    Command::query("SSN?", "", "Get Device Serial Number", ssn_query),
     Command::line("STP", "", "Stop All Axes", stp),
     Command::line("SVO", "{<AxisID> <ServoState>}", "Set Servo Mode", svo),
     Command::query("SVO?", "[{<AxisID>}]", "Get Servo Mode", svo_query),
     Command::query("TMN?", "[{<AxisID>}]", "Get Minimum Commandable Position", tmn_query),
     Command::query("TMX?", "[{<AxisID>}]", "Get Maximum Commandable Position", tmx_query),
     Command::query("TNR?", "", "Get Number Of Record Tables", datarec::tnr_query),
+    Command::query("TRS?", "[{<AxisID>}]", "Indicate Reference Switch", trs_query),
     Command::settings("VEL", "{<AxisID> <Velocity>}", "Set Closed-Loop Velocity", vel),
     Command::query("VEL?", "[{<AxisID>}]", "Get Closed-Loop Velocity", vel_query),
+    Command::query("VER?", "", "Get Versions Of Firmware", ver_query),
     Command::line(
         "WPA",
         "[<Password>]",
@@ -169,7 +179,7 @@ const WAIT_FOR_STORE: [&str; 6] = ["SVO", "MOV", "MVR", "FRF", "XOS", "WPA"];
 // On the stack for one command, never moved into a collection.
 #[allow(clippy::large_enum_variant)]
 pub(super) enum Parsed<'p> {
-    /// A single-byte command (0x05, 0x07, 0x18, any other control byte).
+    /// A single-byte command (0x04, 0x05, 0x07, 0x18, any other control byte).
     Byte(u8),
     /// An empty line: nothing to do, nothing to answer.
     Empty,
@@ -289,6 +299,11 @@ impl Gcs {
         let start = out.buf.len();
         let mut out = out;
         let result = match parsed {
+            Parsed::Byte(0x04) => {
+                out.line();
+                write_register(&mut out, status_register(self.error, snap));
+                Ok(())
+            }
             Parsed::Byte(0x05) => {
                 out.line();
                 out.u(u64::from(snap.in_motion()));

@@ -17,7 +17,7 @@ pub enum Pending {
     Line(Line),
     /// A line longer than [`LINE_CAPACITY`], discarded up to its LF.
     TooLong,
-    /// A single-byte command (0x05, 0x07, 0x18) or another control byte.
+    /// A single-byte command (0x04, 0x05, 0x07, 0x18) or another control byte.
     Byte(u8),
 }
 

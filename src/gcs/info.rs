@@ -1,34 +1,64 @@
-//! Information handlers: `*IDN?`, `CSV?`, `HLP?`, `SAI?`, `CST?` and `XLT?` (loop timing),
-//! and the identification strings they print.
+//! Information handlers: `*IDN?`, `CSV?`, `SSN?`, `VER?`, `SAI?`, `CST?` and `XLT?` (loop
+//! timing), and the identification strings they print.
 
 use super::args::no_args;
 use super::call::{GcsResult, Query};
+use super::framing::Out;
 use super::{error, Gcs};
 
 /// `*IDN?` fields: maker, model, (serial), version (three dot-separated parts at most).
 pub const IDN_MAKER: &str = "(c)2026 piezo-drive project";
 pub const IDN_MODEL: &str = "PD-SB1";
 pub const IDN_VERSION: &str = env!("CARGO_PKG_VERSION");
+/// Appended to the model with parameter 0x1040 set: EPICS motorPIGCS2 picks its driver class by
+/// a PI model name anywhere in `*IDN?` (this one: its C-863/C-867 motor class, whose commands
+/// the board answers); PIPython matches model names exactly, so it sees no known model either way.
+pub const IDN_COMPATIBLE: &str = " (C-867 compatible)";
 /// `CST?`: what the axis is.
 pub const STAGE_NAME: &str = "SHAKING-BEAM-PIEZO";
 
 pub(super) fn idn_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
-    let Query { args, board, out, .. } = c;
+    let Query { args, ctl, board, out } = c;
     no_args(args)?;
     out.line();
     out.s(IDN_MAKER);
     out.s(", ");
     out.s(IDN_MODEL);
+    if ctl.config().idn_c867_compatible {
+        out.s(IDN_COMPATIBLE);
+    }
     out.s(", ");
-    // Six digits at least, as PI prints serial numbers.
-    let serial = board.serial_number();
+    serial(out, board.serial_number());
+    out.s(", ");
+    out.s(IDN_VERSION);
+    Ok(())
+}
+
+/// Six digits at least, as PI prints serial numbers.
+fn serial(out: &mut Out, serial: u32) {
     let mut p = 100_000u32;
     while p > 1 && serial < p {
         out.s("0");
         p /= 10;
     }
     out.u(u64::from(serial));
-    out.s(", ");
+}
+
+/// `SSN?`: the serial number, as `*IDN?` prints it.
+pub(super) fn ssn_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, board, out, .. } = c;
+    no_args(args)?;
+    out.line();
+    serial(out, board.serial_number());
+    Ok(())
+}
+
+/// `VER?`: the firmware's version, one `name: version` line as PI's controllers list theirs.
+pub(super) fn ver_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, out, .. } = c;
+    no_args(args)?;
+    out.line();
+    out.s("FW_ARM: V");
     out.s(IDN_VERSION);
     Ok(())
 }

@@ -4,8 +4,8 @@
 //!
 //! Framing: one command per LF-terminated line, arguments separated by spaces, axis `1`.
 //! Replies are `[args=]value` + LF; a multi-line reply ends every line but the last with space +
-//! LF; no CR is ever sent. The single bytes 0x05 (`#5`), 0x07 (`#7`) and 0x18 (`#24`) are
-//! commands of their own, without LF. A failing command replies nothing and latches a GCS error
+//! LF; no CR is ever sent. The single bytes 0x04 (`#4`), 0x05 (`#5`), 0x07 (`#7`) and 0x18
+//! (`#24`) are commands of their own, without LF. A failing command replies nothing and latches a GCS error
 //! number that `ERR?` returns and clears; a line with any invalid part executes nothing.
 //!
 //! Where things are, from the bottom up (no file imports one above it): `framing` (line
@@ -35,9 +35,10 @@ mod state;
 
 pub use commands::{Command, COMMANDS};
 pub use framing::Pending;
-pub use info::{IDN_MAKER, IDN_MODEL, IDN_VERSION, STAGE_NAME};
+pub use info::{IDN_COMPATIBLE, IDN_MAKER, IDN_MODEL, IDN_VERSION, STAGE_NAME};
 pub use lock::{SharedController, Unshared};
 pub use session::LinkSession;
+pub use state::{limit_switches, LimitSwitches};
 
 use crate::controller::ControllerConfig;
 use crate::recorder::Recorder;
@@ -101,6 +102,8 @@ pub mod error {
     pub const PARAM_OUT_OF_RANGE: i32 = 17;
     pub const WRONG_PARAM_COUNT: i32 = 24;
     pub const MISSING_PARAM: i32 = 26;
+    /// Referencing on a limit switch (`FNL`/`FPL`) with none wired.
+    pub const NO_LIMIT_SWITCH: i32 = 32;
     pub const NOT_ALLOWED: i32 = 34;
     pub const REFERENCING_FAILED: i32 = 45;
     pub const REF_WITH_REF_DISABLED: i32 = 50;

@@ -1,4 +1,4 @@
-//! Motion and servo handlers: `SVO`, `RON`, `FRF`, `POS`, `MOV`, `MVR`, `STP`, `HLT` and the
+//! Motion and servo handlers: `SVO`, `RON`, `FRF`, `FNL`/`FPL`, `POS`, `MOV`, `MVR`, `STP`, `HLT` and the
 //! open-loop extension `XOS`, with the check they share (whether a move may start) and the
 //! mapping of the controller's [`CommandError`] to GCS error numbers (the preload window is the
 //! controller's one check, [`Controller::check_preload`]).
@@ -6,8 +6,9 @@
 use super::args::{axis, flag, no_args, number, pairs, position_nm, to_f32, within_travel};
 use super::call::{Call, GcsResult};
 use super::num::parse_int;
+use super::state::limit_switches;
 use super::{error, Board, Gcs};
-use crate::controller::{CommandError, Controller};
+use crate::controller::{CommandError, Controller, ReferenceSignal};
 
 fn command_error(e: CommandError) -> i32 {
     match e {
@@ -75,6 +76,37 @@ pub(super) fn frf(gcs: &mut Gcs, c: Call) -> GcsResult {
     }
     ctl.start_referencing().map_err(command_error)?;
     Ok(())
+}
+
+/// `FNL`, `FPL`: reference on the negative / positive limit switch (PI's commands for stages
+/// without a reference switch). Without limit switches ([`limit_switches`]) both latch 32 (PI:
+/// stage has no limit switch). With them, `FNL` runs the core's search when the negative switch
+/// is the reference signal (0x1016 = 1), as `FRF` does; the core references on no other switch,
+/// so `FPL`, and `FNL` with the index as the signal, latch 34.
+fn limit_reference(gcs: &mut Gcs, c: Call, negative: bool) -> GcsResult {
+    let Call { args, ctl, .. } = c;
+    for a in args {
+        axis(a)?;
+    }
+    if !limit_switches(ctl.config()).wired {
+        return Err(error::NO_LIMIT_SWITCH);
+    }
+    if !negative || ctl.config().reference_signal != ReferenceSignal::NegativeLimit {
+        return Err(error::NOT_ALLOWED);
+    }
+    if !gcs.reference_mode {
+        return Err(error::REF_WITH_REF_DISABLED);
+    }
+    ctl.start_referencing().map_err(command_error)?;
+    Ok(())
+}
+
+pub(super) fn fnl(gcs: &mut Gcs, c: Call) -> GcsResult {
+    limit_reference(gcs, c, true)
+}
+
+pub(super) fn fpl(gcs: &mut Gcs, c: Call) -> GcsResult {
+    limit_reference(gcs, c, false)
 }
 
 pub(super) fn pos(gcs: &mut Gcs, c: Call) -> GcsResult {

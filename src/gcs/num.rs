@@ -334,13 +334,16 @@ pub fn write_general(out: &mut dyn Sink, v: f64) -> bool {
 
 /// An f32 with the fewest significant digits (nine at most) that read back as the same f32
 /// through [`parse_decimal`] and [`Decimal::to_f64`]; trailing zeros trimmed: `40`, `0.01`,
-/// `12.3456793`. Values beyond ±9.2e18 saturate; NaN and infinities print as 0. Computed in f64
-/// (software on the Cortex-M4F; only `SPA?` uses it).
+/// `12.3456793`; from 1e18 up in exponent form, `3.40282347e32`. NaN and infinities print as
+/// 0. Computed in f64 (software on the Cortex-M4F; only `SPA?` uses it).
 pub fn write_f32(out: &mut dyn Sink, v: f32) -> bool {
     let v = if v.is_finite() { v } else { 0.0 };
     let x = f64::from(v);
     let a = if x < 0.0 { -x } else { x };
     let e = leading_exponent(a, 1.0f64, 40, -46);
+    if a >= 1e18 {
+        return write_f32_exponent(out, v, a, e);
+    }
     let mut best: (i64, u32) = (0, 0);
     for digits in 1..=9i32 {
         let decimals = (digits - 1 - e).clamp(0, 18) as u32;
@@ -364,4 +367,61 @@ pub fn write_f32(out: &mut dyn Sink, v: f32) -> bool {
         return false;
     }
     out.put(s)
+}
+
+/// [`write_f32`] for |v| ≥ 1e18 (`a` = |v|, 10^`e` ≤ a): `d.ddde<e>` with the fewest mantissa
+/// digits (nine at most) that read back as the same f32, checked by parsing the text.
+fn write_f32_exponent(out: &mut dyn Sink, v: f32, a: f64, e: i32) -> bool {
+    let mut best: Vec<u8, 24> = Vec::new();
+    for digits in 1..=9i32 {
+        // a / 10^(e + 1 − digits), in exact chunks of at most 10^22 as `to_f64` multiplies.
+        let mut k = e + 1 - digits;
+        let mut m = a;
+        while k > 0 {
+            let step = k.min(22);
+            m /= POW10.get(step as usize).copied().unwrap_or(1e22);
+            k -= step;
+        }
+        let mut m = (m + 0.5) as u64;
+        let mut exp = e;
+        if m >= 10u64.pow(digits as u32) {
+            // Rounded up to one more digit (9.99… → 10.0…).
+            m /= 10;
+            exp += 1;
+        }
+        let mut text: Vec<u8, 24> = Vec::new();
+        let mut digits_buf: Vec<u8, 24> = Vec::new();
+        if !write_u64(&mut digits_buf, m) {
+            return false;
+        }
+        let (first, rest) = digits_buf.split_at(1);
+        let _ = text.extend_from_slice(first);
+        let rest = trim_trailing(rest, b'0');
+        if !rest.is_empty() {
+            let _ = text.push(b'.');
+            let _ = text.extend_from_slice(rest);
+        }
+        let _ = text.push(b'e');
+        if !write_i64(&mut text, i64::from(exp)) {
+            return false;
+        }
+        best = text;
+        if parse_decimal(&best).and_then(|d| d.to_f64()).map(|y| y as f32)
+            == Some(if v < 0.0 { -v } else { v })
+        {
+            break;
+        }
+    }
+    if v < 0.0 && !out.put(b"-") {
+        return false;
+    }
+    out.put(&best)
+}
+
+fn trim_trailing(s: &[u8], c: u8) -> &[u8] {
+    let mut end = s.len();
+    while end > 0 && s.get(end - 1) == Some(&c) {
+        end -= 1;
+    }
+    s.get(..end).unwrap_or(s)
 }

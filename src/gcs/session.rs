@@ -15,7 +15,7 @@
 //!   rest is sent. The `#24` byte itself stays in the queue and runs in its place (it stops
 //!   again whatever a command received before it started, and latches error 10, as PIPython's
 //!   `StopAll` expects from its `ERR?`). `#24` with no reply in flight simply runs.
-//! - `#5` and `#7` wait in the queue like lines: their answers cannot go inside another reply.
+//! - `#4`, `#5` and `#7` wait in the queue like lines: their answers cannot go inside another reply.
 //! - A byte that finds the queue full is lost, and so is every byte received until the queue
 //!   has drained up to it (a `#24` among them still stops the controller): in its place among the
 //!   commands, the line the first lost byte belonged to executes nothing and latches error 3

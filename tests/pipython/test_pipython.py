@@ -2,7 +2,8 @@
 
 Starts the virtual controller, connects with PIPython's own socket gateway, runs
 pitools.startup with FRF referencing, moves to several targets with MOV + waitontarget, checks
-qPOS against each target, checks that a target outside TMN?/TMX? raises GCSError 7, stops with STP.
+qPOS against each target, checks that a target outside TMN?/TMX? raises GCSError 7, stops with STP;
+then sets the compatibility identity (0x1040) and does it again on a new connection.
 
 Run: python3 tests/pipython/test_pipython.py [path/to/host-sim]   (exit code 0 = pass)
 """
@@ -109,6 +110,26 @@ def main():
             assert abs(pidevice.qPOS("1")["1"] - stopped) < 1e-3, "still moving after STP"
             assert 0.1 < stopped < 0.6, stopped
             print(f"STP: stopped at {stopped} mm on the way from 0.1 to 0.6 mm")
+
+            # The compatibility identity (parameter 0x1040, for EPICS motorPIGCS2): set it.
+            pidevice.SPA("1", 0x1040, 1)
+            assert pidevice.qSPA("1", 0x1040)["1"][0x1040] == 1
+
+        # A new connection sees the C-867 name in *IDN? and works as before: PIPython picks
+        # nothing by it (it matches whole model names), so referencing and moves are unchanged.
+        with GCSDevice(gateway=PISocket(host="127.0.0.1", port=port)) as pidevice:
+            idn = pidevice.qIDN().strip()
+            print("connected:", idn)
+            assert "C-867 compatible" in idn and len(idn.split(",")) == 4, idn
+            pitools.startup(pidevice, refmodes=["FRF"])
+            assert pidevice.qFRF("1")["1"] is True
+            for target in (0.2, -0.1):
+                pidevice.MOV("1", target)
+                pitools.waitontarget(pidevice, axes="1", timeout=20)
+                pos = pidevice.qPOS("1")["1"]
+                print(f"MOV {target} mm -> qPOS {pos:.6f} mm")
+                assert abs(pos - target) <= TOLERANCE_MM, (target, pos)
+            pidevice.SPA("1", 0x1040, 0)
     finally:
         stop_server(proc)
     print(f"PIPython test passed in {time.monotonic() - t0:.1f} s")

@@ -85,9 +85,17 @@ pub fn script(p: &Params) -> Vec<Step> {
         "DRC?",
         "DRT?",
         "DRL?",
+        "LIM?",
+        "TRS?",
+        "HAR?",
+        "SRG? 1 1",
+        "SSN?",
+        "VER?",
+        "SPA? 1 0x50",
     ] {
         s.push(line(q, ok));
     }
+    s.push(Step::Gcs(vec![0x04], ok));
     s.push(Step::Gcs(vec![0x05], ok));
     s.push(Step::Gcs(vec![0x07], ok));
     // A parameter store (servo off and idle only).
@@ -145,6 +153,11 @@ pub fn script(p: &Params) -> Vec<Step> {
     s.push(line("RON 1 0", ok));
     s.push(line("POS 1 0.1", ok));
     s.push(line("RON 1 1", ok));
+    // Referencing on a limit switch: none wired.
+    s.push(line("FNL 1", error::NO_LIMIT_SWITCH));
+    s.push(line("ERR?", ok));
+    s.push(line("FPL 1", error::NO_LIMIT_SWITCH));
+    s.push(line("ERR?", ok));
     // The malformed: an unknown command, a line too long.
     s.push(line("XYZ", error::UNKNOWN_COMMAND));
     s.push(line("ERR?", ok));
