@@ -306,6 +306,31 @@ fn every_query_hlp_lists_answers_without_arguments() {
     }
 }
 
+/// PI's setters that have a query of the same name with `?` (GCS 2.0), and those that have none.
+const PAIRED: &[&str] = &["ACC", "DEC", "DRC", "DRT", "FRF", "MOV", "POS", "RON", "RTR", "SPA", "SVO", "VEL"];
+const UNPAIRED: &[&str] = &["FNL", "FPL", "HLT", "MVR", "STP", "WPA"];
+
+#[test]
+fn every_command_hlp_lists_has_its_query_form_where_pi_has_one() {
+    let mut rig = Rig::new();
+    let hlp = rig.text("HLP?\n");
+    let names: Vec<&str> = hlp.lines().skip(1).filter_map(|l| l.split(' ').next()).collect();
+    for name in names.iter().filter(|n| !n.ends_with('?') && !n.starts_with('#') && **n != "end") {
+        let query = format!("{name}?");
+        if PAIRED.contains(name) {
+            assert!(names.contains(&query.as_str()), "{name} without {query}");
+            let reply = rig.text(&format!("{query}\n"));
+            assert!(!reply.is_empty(), "{query}: silence");
+            assert_eq!(rig.text("ERR?\n"), "0\n", "{query}");
+        } else {
+            // No query on PI's controllers either (or an extension of ours): unknown, 2.
+            assert!(UNPAIRED.contains(name) || name.starts_with('X'), "{name}: which is it?");
+            assert_eq!(rig.text(&format!("{query}\n")), "", "{query}");
+            assert_eq!(rig.text("ERR?\n"), "2\n", "{query}");
+        }
+    }
+}
+
 proptest! {
     #![proptest_config(ProptestConfig { cases: 64, ..ProptestConfig::default() })]
 
