@@ -70,6 +70,16 @@ def main():
             assert pidevice.qFRF("1")["1"] is True
             assert pidevice.qSVO("1")["1"] is True
 
+            # What PI's tools ask besides, through PIPython's own parsers: no limit switches, a
+            # reference signal, no hard stops; the status register (servo on, bit 12; on target,
+            # bit 15); versions and serial number.
+            assert pidevice.qLIM("1")["1"] is False and pidevice.qTRS("1")["1"] is True
+            assert pidevice.qHAR("1")["1"] is False
+            time.sleep(0.05)
+            assert pidevice.qSRG("1", 1)["1"][1] & 0x9000 == 0x9000, pidevice.qSRG("1", 1)
+            assert pidevice.qVER().startswith("FW_ARM: V"), pidevice.qVER()
+            assert pidevice.qSSN().strip().isdigit(), pidevice.qSSN()
+
             tmn = pidevice.qTMN("1")["1"]
             tmx = pidevice.qTMX("1")["1"]
             print(f"travel {tmn} .. {tmx} mm")
