@@ -300,11 +300,12 @@ pub fn counts_per_mm(nm_per_count: u32) -> (u32, u32) {
     (1_000_000 / a, nm_per_count.max(1) / a)
 }
 
-/// The largest value a range allows.
-const fn range_top(r: Range) -> f32 {
-    match r {
-        Range::Float { hi, .. } => hi,
-        Range::Int { hi, .. } => hi as f32,
+/// The largest value the row with this id accepts, in its field's unit (0 for no such row).
+fn top_of(id: u32) -> f32 {
+    match find(i64::from(id)).map(|s| s.range) {
+        Some(Range::Float { hi, .. }) => hi,
+        Some(Range::Int { hi, .. }) => hi as f32,
+        None => 0.0,
     }
 }
 
@@ -534,10 +535,10 @@ settings! {
     // PI's maximum closed-loop acceleration and deceleration: the most 0xB and 0xC accept. The
     // profile also keeps within what the thrust model allows at the measured preload (XTM?).
     (0x4A, "Motion",
-        accel_limit_nm_s2: f32 = derived(|_| range_top(POSITIVE), "the range of 0xB");
+        accel_limit_nm_s2: f32 = derived(|_| top_of(0xB), "the range of 0xB");
         "mm/s^2", 1e6, POSITIVE, ReadOnly, "Maximum closed-loop acceleration"),
     (0x4B, "Motion",
-        decel_limit_nm_s2: f32 = derived(|_| range_top(POSITIVE), "the range of 0xC");
+        decel_limit_nm_s2: f32 = derived(|_| top_of(0xC), "the range of 0xC");
         "mm/s^2", 1e6, POSITIVE, ReadOnly, "Maximum closed-loop deceleration"),
     // PI's velocity for reference moves: the search drives open loop at 0x1018, so this is
     // 0x1018 seen as the model's speed with no load (at the middle of the preload window);
