@@ -8,9 +8,11 @@ mod firmware;
 #[cfg(target_os = "none")]
 mod board {
     use defmt_rtt as _;
-    use embassy_executor::Spawner;
+    use embassy_executor::{InterruptExecutor, SendSpawner, Spawner};
 
     use embassy_stm32::gpio::{Level, Output, Speed};
+    use embassy_stm32::interrupt;
+    use embassy_stm32::interrupt::InterruptExt;
     use embassy_stm32::time::Hertz;
     use embassy_stm32::usart::{self, BufferedUart};
     use embassy_stm32::wdg::IndependentWatchdog;
@@ -20,10 +22,22 @@ mod board {
     use piezo_drive::defaults;
 
     use crate::firmware::{control, encoder, model, monitor, params_flash, preload, safety, uart};
+    use control::{COMMS_IRQ, COMMS_PRIORITY};
 
     bind_interrupts!(struct Irqs {
         LPUART1 => usart::BufferedInterruptHandler<peripherals::LPUART1>;
     });
+
+    /// Communication and sensing (UART/GCS, preload, flash store, monitor, the model table's
+    /// request and install) run here, on `control::COMMS_IRQ` below the tick's priority; thread
+    /// mode keeps only the model table's build, which never yields (docs/firmware.md).
+    static COMMS: InterruptExecutor = InterruptExecutor::new();
+
+    #[interrupt]
+    unsafe fn UART4() {
+        // SAFETY: this is the vector of `control::COMMS_IRQ`, which `COMMS` was started on.
+        unsafe { COMMS.on_interrupt() }
+    }
 
     /// 24 MHz HSE → PLL (M=6, N=85, R=2) → 170 MHz, boost mode (needed above 150 MHz); ADC12 on
     /// the system clock (embassy picks the prescaler).
@@ -129,11 +143,12 @@ mod board {
             Err(_) => panic!("LPUART1 configuration refused"),
         };
 
-        spawn(&spawner, "preload", spawner.spawn(preload::preload_task(cell)));
-        spawn(&spawner, "uart", spawner.spawn(uart::uart_task(serial)));
-        spawn(&spawner, "model", spawner.spawn(model::model_task()));
+        COMMS_IRQ.set_priority(COMMS_PRIORITY);
+        let comms = COMMS.start(COMMS_IRQ);
+        spawn("preload", comms.spawn(preload::preload_task(cell)));
+        spawn("uart", comms.spawn(uart::uart_task(serial)));
         if let Some(flash) = flash {
-            spawn(&spawner, "flash", spawner.spawn(params_flash::flash_task(flash, defaults)));
+            spawn("flash", comms.spawn(params_flash::flash_task(flash, defaults)));
         } else {
             defmt::warn!("flash in single-bank mode (DBANK=0): parameters not persistent");
         }
@@ -149,10 +164,19 @@ mod board {
         // `wdg` is not fed from here on (it has no `Drop`; the IWDG keeps running).
 
         // From here the log's view of the loop (state changes, faults, statistics) is a task.
-        spawn(&spawner, "monitor", spawner.spawn(monitor::monitor_task()));
+        spawn("monitor", comms.spawn(monitor::monitor_task()));
+        spawn_table_tasks(&spawner, comms);
     }
 
-    fn spawn(_spawner: &Spawner, name: &str, r: Result<(), embassy_executor::SpawnError>) {
+    /// The model table: its request and install beside the other communication tasks, its build
+    /// in thread mode. Spawned last: a build holds thread mode for seconds, and `main` (thread
+    /// mode too) has to have started the loop and the watchdogs first.
+    fn spawn_table_tasks(thread: &Spawner, comms: SendSpawner) {
+        spawn("table link", comms.spawn(model::table_link_task()));
+        spawn("table build", thread.spawn(model::table_build_task()));
+    }
+
+    fn spawn(name: &str, r: Result<(), embassy_executor::SpawnError>) {
         if r.is_err() {
             defmt::error!("task {} not spawned", name);
         }

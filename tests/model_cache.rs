@@ -50,11 +50,58 @@ fn a_table_for_settings_that_changed_meanwhile_is_refused() {
     let fresh = ctl.model_request().expect("still wanted");
     assert_ne!(fresh.per_volt, request.per_volt);
     assert!(ctl.install_model(ModelTable::build(&fresh)));
-    // A settings change drops the installed table too.
+    // A change of what the table is built from drops it: the carriage's mass enters the grid.
     let mut cfg = *ctl.config();
-    cfg.kp_per_s *= 2.0;
+    cfg.moving_mass_kg *= 2.0;
     ctl.set_config(cfg).unwrap();
     assert!(ctl.model_request().is_some());
+}
+
+#[test]
+fn settings_outside_the_model_keep_the_table() {
+    let mut ctl = controller_at(WORD_16_N);
+    let request = ctl.model_request().unwrap();
+    assert!(ctl.install_model(ModelTable::build(&request)));
+    let before = ctl.thrust_limits().unwrap();
+    // Speed, acceleration, deceleration, gains, limits, windows: none of them enters the table
+    // (eqs. 19-22 and the carriage's motion read the motor, the drive and the carriage only).
+    let changes: [fn(&mut piezo_drive::config::ControllerConfig); 6] = [
+        |c| c.velocity_max_nm_s *= 0.5,
+        |c| c.accel_max_nm_s2 *= 0.5,
+        |c| c.decel_max_nm_s2 *= 0.5,
+        |c| c.kp_per_s *= 2.0,
+        |c| c.following_error_limit_nm *= 2.0,
+        |c| c.fine_window_nm *= 2.0,
+    ];
+    for change in changes {
+        let mut cfg = *ctl.config();
+        change(&mut cfg);
+        ctl.set_config(cfg).unwrap();
+        assert!(ctl.model_request().is_none(), "the table stays");
+        assert_eq!(ctl.thrust_limits().unwrap(), before);
+    }
+    // A build that was under way across such a change still installs.
+    let mut ctl = controller_at(WORD_16_N);
+    let request = ctl.model_request().unwrap();
+    let mut cfg = *ctl.config();
+    cfg.velocity_max_nm_s *= 0.5;
+    ctl.set_config(cfg).unwrap();
+    assert!(ctl.install_model(ModelTable::build(&request)));
+}
+
+#[test]
+fn a_request_within_the_preload_resolution_is_the_same_table() {
+    let ctl = controller_at(WORD_16_N);
+    let r = ctl.model_request().unwrap();
+    let resolve = piezo_drive::controller::model_cache::PRELOAD_RESOLVE_N;
+    let nudged =
+        |df: f32| piezo_drive::controller::model_cache::ModelRequest { preload_n: r.preload_n + df, ..r };
+    assert!(r.same_table_as(&nudged(0.5 * resolve)));
+    assert!(r.same_table_as(&nudged(-0.9 * resolve)));
+    assert!(!r.same_table_as(&nudged(1.5 * resolve)));
+    let heavier =
+        piezo_drive::controller::model_cache::ModelRequest { moving_mass_kg: r.moving_mass_kg * 2.0, ..r };
+    assert!(!r.same_table_as(&heavier));
 }
 
 #[test]

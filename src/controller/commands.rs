@@ -1,6 +1,7 @@
 //! The commands a host gives (GCS `SVO`, `MOV`, `MVR`, `HLT`, `STP`, `XOS`, `FRF`, `SPA`…):
 //! each checks what it needs and sets the state the next [`Controller::step`] acts on.
 
+use super::model_cache::TableSettings;
 use super::open_loop::OpenLoopRun;
 use super::referencing::ReferenceSearch;
 use super::{validate_change, Activity, CommandError, Controller, ControllerConfig, Mode, State};
@@ -38,7 +39,7 @@ impl Controller {
         // not through a new mass or calibration (the rows' `invalidates`).
         self.mass.configure(cfg.moving_mass_kg, change.forget_mass);
         self.cfg = *cfg;
-        self.model.reconfigure_with(change.per_volt, change.fine_nm_per_v);
+        self.model.reconfigure_with(change.per_volt, change.fine_nm_per_v, change.table_changed);
         Ok(())
     }
 
@@ -246,6 +247,8 @@ pub struct ConfigChange {
     forget_load: bool,
     /// A changed setting invalidates the learned mass ([`Invalidates::LEARNED_MASS`]).
     forget_mass: bool,
+    /// A changed setting enters the model table ([`TableSettings`]).
+    table_changed: bool,
     /// The generation of the settings it replaces.
     from_generation: u32,
 }
@@ -265,6 +268,7 @@ impl ConfigChange {
             fine_nm_per_v: cfg.fine_nm_per_v(),
             forget_load: forgets.contains(Invalidates::LEARNED_LOAD),
             forget_mass: forgets.contains(Invalidates::LEARNED_MASS),
+            table_changed: TableSettings::of(current) != TableSettings::of(&cfg),
             from_generation: generation,
             cfg,
         })

@@ -69,9 +69,23 @@ pub struct ModelRequest {
     /// holds the foot's thrust net of it.
     pub rail_coulomb_n: f32,
     pub rail_viscous_n_s_per_m: f32,
-    /// The controller configuration this request belongs to (bumped by every accepted
-    /// `set_config`): a table built for an older one is refused.
+    /// The table settings this request belongs to (bumped by every accepted settings change
+    /// that changes [`TableSettings`]): a table built for an older one is refused.
     pub generation: u32,
+}
+
+impl ModelRequest {
+    /// Whether a table built for `self` serves `other` as well: the same settings and frequency
+    /// choice, and a preload and a choice load within [`PRELOAD_RESOLVE_N`]. A board that builds in the background
+    /// keeps its build going while the force cell's noise moves the request's preload.
+    pub fn same_table_as(&self, other: &ModelRequest) -> bool {
+        let near = |a: f32, b: f32| (a - b).abs() <= PRELOAD_RESOLVE_N;
+        let mut choice = self.choice;
+        choice.load_n = other.choice.load_n;
+        near(self.preload_n, other.preload_n)
+            && near(self.choice.load_n, other.choice.load_n)
+            && ModelRequest { preload_n: other.preload_n, choice, ..*self } == *other
+    }
 }
 
 /// The controller's view of its thrust limits at one instant ([`Controller::thrust_inputs`]).
@@ -501,30 +515,77 @@ impl ModelTable {
     }
 }
 
+/// The settings a model table is built from: the motor and its calibration, the drive's
+/// frequencies and voltage, the carriage's mass and its guide's friction. A change of any other
+/// setting (`VEL`, `ACC`, `DEC`, gains, limits, windows) leaves the table as it is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TableSettings {
+    motor: crate::model::MotorConstants,
+    drive_freq_hz: f32,
+    drive_freq_min_hz: f32,
+    max_drive_v: f32,
+    moving_mass_kg: f32,
+    mu_dynamic: f32,
+    tangential_scale: f32,
+    normal_force_ratio: f32,
+    rail_coulomb_n: f32,
+    rail_viscous_n_s_per_m: f32,
+}
+
+impl TableSettings {
+    pub fn of(c: &ControllerConfig) -> Self {
+        TableSettings {
+            motor: c.motor,
+            drive_freq_hz: c.drive_freq_hz,
+            drive_freq_min_hz: c.drive_freq_min_hz,
+            max_drive_v: c.max_drive_v,
+            moving_mass_kg: c.moving_mass_kg,
+            mu_dynamic: c.mu_dynamic,
+            tangential_scale: c.tangential_scale,
+            normal_force_ratio: c.normal_force_ratio,
+            rail_coulomb_n: c.rail_coulomb_n,
+            rail_viscous_n_s_per_m: c.rail_viscous_n_s_per_m,
+        }
+    }
+}
+
 /// The controller's copy of the model table (see this module) and what it asks for.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct ModelSlot {
     pub(super) per_volt: PerVolt,
     /// Static foot displacement per volt of common offset (nm/V), calibrated.
     pub(super) fine_nm_per_v: f32,
-    /// Counts accepted configurations: a table built for an older one is refused.
+    /// Counts accepted configurations: a settings change prepared from an older one is refused.
     pub(super) generation: u32,
+    /// Counts the configurations that changed [`TableSettings`]: a table built for an older one
+    /// is refused.
+    pub(super) table_generation: u32,
     pub(super) table: Option<ModelTable>,
 }
 
 impl ModelSlot {
     pub(super) fn new(cfg: &ControllerConfig, generation: u32) -> Self {
-        ModelSlot { per_volt: cfg.per_volt(), fine_nm_per_v: cfg.fine_nm_per_v(), generation, table: None }
+        ModelSlot {
+            per_volt: cfg.per_volt(),
+            fine_nm_per_v: cfg.fine_nm_per_v(),
+            generation,
+            table_generation: generation,
+            table: None,
+        }
     }
 
-    /// New settings: the table they need is asked for anew, the old one dropped. In place,
+    /// New settings, with these amplitudes per volt and fine stroke. Where they change what the
+    /// table is built from (`table_changed`), the table goes and a new one is asked for; else
+    /// the table stays (a build of seconds on the board must not restart on a `VEL`). In place,
     /// because a whole slot moved by value copies the table's kilobytes under the tick lock.
-    /// New settings whose amplitudes per volt and fine stroke are these: the table goes.
-    pub(super) fn reconfigure_with(&mut self, per_volt: PerVolt, fine_nm_per_v: f32) {
+    pub(super) fn reconfigure_with(&mut self, per_volt: PerVolt, fine_nm_per_v: f32, table_changed: bool) {
         self.per_volt = per_volt;
         self.fine_nm_per_v = fine_nm_per_v;
         self.generation = self.generation.wrapping_add(1);
-        self.table = None;
+        if table_changed {
+            self.table_generation = self.table_generation.wrapping_add(1);
+            self.table = None;
+        }
     }
 }
 
@@ -588,7 +649,7 @@ impl Controller {
         // The request's own frequency is where the build stays when the model can rank no
         // candidate ([`ModelRequest::chosen`]): the one in use, else the highest.
         let (frequency_hz, per_volt) = match self.model.table.as_ref() {
-            Some(t) if choice.len > 1 && t.request().generation == self.model.generation => {
+            Some(t) if choice.len > 1 && t.request().generation == self.model.table_generation => {
                 (t.request().frequency_hz, t.request().per_volt)
             }
             _ => (choice.frequency_hz[0], choice.per_volt[0]),
@@ -602,7 +663,7 @@ impl Controller {
             moving_mass_kg: self.cfg.moving_mass_kg,
             rail_coulomb_n: self.cfg.rail_coulomb_n,
             rail_viscous_n_s_per_m: self.cfg.rail_viscous_n_s_per_m,
-            generation: self.model.generation,
+            generation: self.model.table_generation,
         })
     }
 
@@ -611,7 +672,7 @@ impl Controller {
     pub fn install_model(&mut self, table: ModelTable) -> bool {
         let r = table.request();
         let lowest = self.cfg.drive_freq_min_hz.min(self.cfg.drive_freq_hz);
-        let current = r.generation == self.model.generation
+        let current = r.generation == self.model.table_generation
             && r.per_volt == self.cfg.per_volt_at(r.frequency_hz)
             && r.max_drive_v == self.cfg.max_drive_v
             && (lowest..=self.cfg.drive_freq_hz).contains(&r.frequency_hz)

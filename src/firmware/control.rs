@@ -29,9 +29,9 @@
 //!    tick that was on time.
 //!
 //! Sharing the controller: the tick runs at priority 1 with interrupts enabled, so the UART,
-//! time-driver, EXTI and WWDG interrupts (priority 0, all short) preempt it. The UART task
-//! (thread mode) takes the controller through [`TickLock::lock`], which masks only the TIM7
-//! interrupt: queries take a snapshot of it under the lock and format outside it; settings
+//! time-driver, EXTI and WWDG interrupts (priority 0, all short) preempt it. The UART task (on
+//! the communication executor, priority 2) takes the controller through [`TickLock::lock`],
+//! which masks the TIM7 interrupt: queries take a snapshot of it under the lock and format outside it; settings
 //! commands check a copy of the settings outside it and set them under it; other commands run
 //! under it (check and act). `piezo_drive::gcs::Gcs::execute_shared` decides which, and
 //! `host-sim pil --gcs-locks` counts every locked section on the emulated M4.
@@ -40,6 +40,7 @@ use core::cell::UnsafeCell;
 use core::mem::MaybeUninit;
 use core::sync::atomic::{compiler_fence, AtomicBool, AtomicU32, Ordering};
 
+use cortex_m::interrupt::InterruptNumber;
 use cortex_m::peripheral::scb::VectActive;
 use cortex_m::peripheral::{DWT, NVIC, SCB};
 use embassy_stm32::gpio::Output;
@@ -63,15 +64,17 @@ use super::preload::PRELOAD_WORD;
 use super::ring;
 use super::{AMP_REST_WORD, CORE_HZ, SAMPLE_COUNTS, SOFT_START_SAMPLES, TICK_COUNTS};
 
-/// Data shared between the TIM7 tick and thread-mode code.
+/// Data shared between the TIM7 tick and the code below it (communication executor, thread mode).
 pub struct TickLock<T> {
     data: UnsafeCell<T>,
     busy: AtomicBool,
 }
 
-// SAFETY: access is serialised: thread mode only inside `lock` (TIM7 masked, thread mode is one
-// context, `busy` refuses nesting), the tick only from its own handler, which cannot run while
-// thread mode holds the lock and is not preempted by anything that touches this data.
+// SAFETY: access is serialised: thread mode and the communication executor only inside `lock`
+// (TIM7 masked; from thread mode the communication executor's interrupt too, and that executor
+// preempts thread mode, so neither can find the other inside; `busy` refuses nesting), the tick
+// only from its own handler, which cannot run while either holds the lock and is not preempted
+// by anything that touches this data.
 unsafe impl<T: Send> Sync for TickLock<T> {}
 
 impl<T> TickLock<T> {
@@ -79,26 +82,44 @@ impl<T> TickLock<T> {
         TickLock { data: UnsafeCell::new(v), busy: AtomicBool::new(false) }
     }
 
-    /// Runs `f` with the TIM7 interrupt masked. For thread mode (tasks, `main`); keep `f` short,
-    /// it delays the control tick. `None` (and `f` not run) when called from an interrupt or from
-    /// inside another `lock` of the same data.
+    /// Runs `f` with the TIM7 interrupt masked. From thread mode (the table build) the
+    /// communication executor's interrupt is masked as well, so that executor never finds the
+    /// lock taken: it cannot wait for a context it preempts. From the communication executor
+    /// (UART, preload, flash store, monitor, the table's install) only TIM7 is masked. Keep `f`
+    /// short, it delays the control tick. `None` (and `f` not run) when called from any other
+    /// interrupt or from inside another `lock` of the same data.
     pub fn lock<R>(&self, f: impl FnOnce(&mut T) -> R) -> Option<R> {
-        if SCB::vect_active() != VectActive::ThreadMode || self.busy.swap(true, Ordering::Acquire) {
+        let from_thread = match SCB::vect_active() {
+            VectActive::ThreadMode => true,
+            VectActive::Interrupt { irqn } if irqn == COMMS_IRQ.number() as u8 => false,
+            _ => return None,
+        };
+        if self.busy.swap(true, Ordering::Acquire) {
             return None;
         }
-        let irq = interrupt::TIM7_DAC;
-        let was_enabled = NVIC::is_enabled(irq);
-        NVIC::mask(irq);
+        let tick = interrupt::TIM7_DAC;
+        let tick_was_enabled = NVIC::is_enabled(tick);
+        let comms_was_enabled = from_thread && NVIC::is_enabled(COMMS_IRQ);
+        NVIC::mask(tick);
+        if comms_was_enabled {
+            NVIC::mask(COMMS_IRQ);
+        }
         // The mask takes effect before the next access.
         cortex_m::asm::dsb();
         cortex_m::asm::isb();
         compiler_fence(Ordering::SeqCst);
-        // SAFETY: the tick cannot run now, and `busy` makes this the only thread-mode borrow.
+        // SAFETY: the tick cannot run now, nor (from thread mode) the communication executor;
+        // `busy` makes this the only borrow outside the tick.
         let r = f(unsafe { &mut *self.data.get() });
         compiler_fence(Ordering::SeqCst);
-        if was_enabled {
-            // SAFETY: restores the state found on entry.
-            unsafe { NVIC::unmask(irq) };
+        // SAFETY: restores the state found on entry.
+        unsafe {
+            if comms_was_enabled {
+                NVIC::unmask(COMMS_IRQ);
+            }
+            if tick_was_enabled {
+                NVIC::unmask(tick);
+            }
         }
         self.busy.store(false, Ordering::Release);
         Some(r)
@@ -113,7 +134,15 @@ impl<T> TickLock<T> {
     }
 }
 
-/// The controller, shared by the tick (every 100 µs) and the UART task (per command).
+/// The interrupt that runs the communication executor (`main.rs`): UART4's vector, unused by
+/// the board. Its priority sits below the tick's and above thread mode (docs/firmware.md).
+pub const COMMS_IRQ: interrupt::Interrupt = interrupt::UART4;
+/// The tick's priority, and the communication executor's just below it.
+pub const TICK_PRIORITY: Priority = Priority::P1;
+pub const COMMS_PRIORITY: Priority = Priority::P2;
+
+/// The controller, shared by the tick (every 100 µs), the communication executor's tasks (per
+/// command, per poll) and the table build in thread mode (its install).
 pub static CONTROLLER: TickLock<Slot<Controller>> = TickLock::new(Slot::EMPTY);
 
 /// A value installed once at boot, empty until then. Unlike `Option<Controller>`, whose `None`
@@ -335,7 +364,7 @@ pub fn start(
     });
 
     let irq = interrupt::TIM7_DAC;
-    irq.set_priority(Priority::P1);
+    irq.set_priority(TICK_PRIORITY);
     // SAFETY: the handler touches `TICK` and `CONTROLLER` as `TickLock` allows, the rest are atomics.
     unsafe { irq.enable() };
 }

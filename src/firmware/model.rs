@@ -1,42 +1,149 @@
-//! The control core's lower-rate work, in thread mode: the thrust-model table the tick reads
-//! (`piezo_drive::controller::model_cache`). Building it costs 1.4–2.3 million instructions,
-//! far more than a 100 µs tick may spend, and its inputs (the preload, the settings) change
-//! slowly; so this task asks the controller every millisecond whether it wants a new table,
-//! builds it with the tick running (it preempts this task), and hands it over under the tick
-//! lock (a copy of the table, ~2 KiB). The tick never waits for it: it keeps the table it has
-//! until the new one is installed. The build runs in slices (`TableBuild`) and yields to the
-//! executor between them, so the UART and preload tasks of the same executor wait at most one
-//! slice, not the whole build (which outlasted the tick's 20 ms preload staleness limit).
+//! The thrust-model table the tick reads (`piezo_drive::controller::model_cache`), built on the
+//! board in the background.
+//!
+//! Two sides, one per execution context (docs/firmware.md, *Who preempts whom*):
+//! - [`table_link_task`], on the communication executor: every millisecond it asks the
+//!   controller (under the tick lock, a few hundred instructions) whether it wants a new table,
+//!   hands the request to the build, and installs a finished table under the tick lock (a copy
+//!   into the controller's slot, measured by `host-sim pil`). The controller keeps the last
+//!   complete table until then; a finished table that no longer answers the settings is refused
+//!   by `Controller::install_model` and thrown away.
+//! - [`table_build_task`], alone in thread mode, the lowest priority: it builds the requested
+//!   table in one go, without yielding. Everything else (the tick, the UART, the preload ADC, the
+//!   flash store, the monitor, this link) preempts it, so a build of seconds holds none of them
+//!   off. A request that changes while a build runs makes the build stop at its next slice
+//!   (`TableBuild::step`) and start again on the new one.
+//!
+//! The hand-over is [`BUILD`]: the request and a generation count in a critical-section cell
+//! (a copy of a few hundred bytes), the result in a buffer that belongs to the build while
+//! [`BUILD_STATE`] says `BUILDING` and to the link while it says `READY`.
 
-use embassy_futures::yield_now;
+use core::cell::{Cell, UnsafeCell};
+use core::mem::MaybeUninit;
+use core::sync::atomic::{AtomicU32, AtomicU8, Ordering};
+
+use embassy_sync::blocking_mutex::CriticalSectionMutex;
 use embassy_time::{Duration, Ticker};
+use piezo_drive::controller::model_cache::{ModelRequest, ModelTable};
 use piezo_drive::controller::table_build::TableBuild;
 
 use super::control::CONTROLLER;
 
-/// How often the task looks for a request: a preload that drifts 0.02 N gets a new table within
-/// about a millisecond plus the build.
+/// How often the link looks for a request or a finished table: a preload that drifts gets a new
+/// request within about a millisecond, a finished table is installed within one.
 const PERIOD: Duration = Duration::from_millis(1);
 
+/// Nothing asked, or the last result taken.
+const IDLE: u8 = 0;
+/// A request waits in [`BUILD`] for the build task.
+const ASKED: u8 = 1;
+/// The build task works on it; the result buffer is the build's.
+const BUILDING: u8 = 2;
+/// A table is in the result buffer; it is the link's until it sets `IDLE`.
+const READY: u8 = 3;
+
+/// Where the build stands (one of the constants above).
+static BUILD_STATE: AtomicU8 = AtomicU8::new(IDLE);
+/// Bumped by the link for every new request: a build whose generation is older stops.
+static WANTED: AtomicU32 = AtomicU32::new(0);
+/// Instructions are not countable on the board; the build's wall time in microseconds is
+/// (the last complete build), for `XTS?`-style diagnostics and the log.
+pub static LAST_BUILD_US: AtomicU32 = AtomicU32::new(0);
+
+/// The request handed to the build, with the generation it was posted under.
+static BUILD: CriticalSectionMutex<Cell<Option<(u32, ModelRequest)>>> =
+    CriticalSectionMutex::new(Cell::new(None));
+
+/// The finished table: written by the build task while `BUILDING`, read by the link while
+/// `READY`.
+struct ResultBuffer(UnsafeCell<MaybeUninit<ModelTable>>);
+// SAFETY: ownership passes through `BUILD_STATE` (Release on hand-over, Acquire on take-over).
+unsafe impl Sync for ResultBuffer {}
+static RESULT: ResultBuffer = ResultBuffer(UnsafeCell::new(MaybeUninit::uninit()));
+
+/// The link, on the communication executor: requests, and installs what the build finished.
 #[embassy_executor::task]
-pub async fn model_task() -> ! {
+pub async fn table_link_task() -> ! {
+    let mut ticker = Ticker::every(PERIOD);
+    let mut posted: Option<ModelRequest> = None;
+    loop {
+        ticker.next().await;
+        if BUILD_STATE.load(Ordering::Acquire) == READY {
+            // SAFETY: READY hands the buffer to this task until it stores IDLE.
+            let table = unsafe { (*RESULT.0.get()).assume_init_ref() };
+            let installed = CONTROLLER.lock(|c| c.as_mut().map(|c| c.install_model(*table)));
+            if installed == Some(Some(true)) {
+                defmt::debug!(
+                    "model table installed for {} N after {} us",
+                    table.request().preload_n,
+                    LAST_BUILD_US.load(Ordering::Relaxed)
+                );
+            }
+            posted = None;
+            BUILD_STATE.store(IDLE, Ordering::Release);
+        }
+        let wanted = CONTROLLER.lock(|c| c.as_ref().and_then(|c| c.model_request())).flatten();
+        match wanted {
+            Some(r) if !posted.is_some_and(|p| p.same_table_as(&r)) => {
+                let generation = WANTED.load(Ordering::Relaxed).wrapping_add(1);
+                WANTED.store(generation, Ordering::Release);
+                BUILD.lock(|b| b.set(Some((generation, r))));
+                posted = Some(r);
+                // A build of an older request stops at its next slice (it sees WANTED move).
+                if BUILD_STATE.load(Ordering::Acquire) == IDLE {
+                    BUILD_STATE.store(ASKED, Ordering::Release);
+                }
+            }
+            None if posted.is_some() => {
+                // Nothing wanted any more (the table fits again): let a running build stop.
+                WANTED.store(WANTED.load(Ordering::Relaxed).wrapping_add(1), Ordering::Release);
+                posted = None;
+            }
+            _ => {}
+        }
+    }
+}
+
+/// The build, alone in thread mode: builds each posted request in one go.
+#[embassy_executor::task]
+pub async fn table_build_task() -> ! {
     let mut ticker = Ticker::every(PERIOD);
     loop {
         ticker.next().await;
-        let Some(Some(request)) = CONTROLLER.lock(|c| c.as_ref().and_then(|c| c.model_request())) else {
+        if BUILD_STATE.load(Ordering::Acquire) != ASKED {
+            continue;
+        }
+        let Some((generation, request)) = BUILD.lock(|b| b.take()) else {
+            BUILD_STATE.store(IDLE, Ordering::Release);
             continue;
         };
+        BUILD_STATE.store(BUILDING, Ordering::Release);
+        let started = embassy_time::Instant::now();
         let mut build = TableBuild::new(&request);
         let table = loop {
-            if let Some(table) = build.step() {
-                break table;
+            if WANTED.load(Ordering::Acquire) != generation {
+                break None;
             }
-            yield_now().await;
+            if let Some(table) = build.step() {
+                break Some(table);
+            }
         };
-        // Refused (false) when the settings changed meanwhile; the next request covers them.
-        let installed = CONTROLLER.lock(|c| c.as_mut().map(|c| c.install_model(table)));
-        if installed == Some(Some(true)) {
-            defmt::debug!("model table installed for {} N", request.preload_n);
+        match table {
+            Some(table) => {
+                // SAFETY: BUILDING: the buffer is this task's.
+                unsafe { (*RESULT.0.get()).write(table) };
+                LAST_BUILD_US.store(started.elapsed().as_micros() as u32, Ordering::Relaxed);
+                BUILD_STATE.store(READY, Ordering::Release);
+            }
+            None => {
+                // Thrown away: a newer request waits (or none is wanted).
+                let next = BUILD.lock(|b| {
+                    let r = b.take();
+                    b.set(r);
+                    r.is_some()
+                });
+                BUILD_STATE.store(if next { ASKED } else { IDLE }, Ordering::Release);
+            }
         }
     }
 }

@@ -1,6 +1,6 @@
 //! The log's view of the running loop: every state change and fault of the controller goes to the
 //! log (a fault also into the no-init record, `safety.rs`), an overrun trip with its figures, and
-//! the loop statistics every 10 s. A thread-mode task polling every 10 ms; it only reads.
+//! the loop statistics every 10 s. A task of the communication executor polling every 10 ms; it only reads.
 
 use core::sync::atomic::Ordering;
 

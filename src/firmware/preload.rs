@@ -1,5 +1,5 @@
 //! Preload force cell: ADC1 on PC0 with 16× hardware oversampling (shifted back to a 12-bit
-//! word, the core's calibration unit) read at 1 kHz in a thread-mode task; the word reaches the
+//! word, the core's calibration unit) read at 1 kHz in a task of the communication executor; the word reaches the
 //! control tick through an atomic, so neither side ever waits for the other.
 //!
 //! Open-input probe: every [`PROBE_EVERY`] samples the task pulls PC0 weakly down (GPIO input
