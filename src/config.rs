@@ -87,6 +87,10 @@ pub struct ControllerConfig {
     /// pick their driver by PI's model name (EPICS motorPIGCS2) then take it for the PI motor
     /// controller whose command set it answers. Off by default: the identity stays our own.
     pub idn_c867_compatible: bool,
+    /// The model table from the contact model (the stator's normal motion, the carriage's orbit
+    /// on its friction layer) instead of the inertial model; the inertial table serves until the
+    /// contact table is built.
+    pub contact_table: bool,
 }
 
 /// What referencing looks for.

@@ -19,6 +19,7 @@
 #![deny(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 
 pub mod config;
+pub mod contact_motor;
 pub mod contact_orbit;
 pub mod controller;
 pub mod defaults;

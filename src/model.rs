@@ -39,6 +39,9 @@ pub struct MotorConstants {
     /// counterweight mode √((k1 + k2)/m2), where the contact amplitude grows without bound. The
     /// controller chooses its drive frequency from here up ([`crate::controller::model_cache`]).
     pub lowest_model_freq_hz: f32,
+    /// The stator, the contact and its friction layer as the contact model takes them (the
+    /// model table's contact build).
+    pub contact: crate::contact_motor::ContactMotor,
 }
 
 /// Mean contact force over a period per unit `kc·Yc`, g(θ) = (2 sin(θ/2) − θ cos(θ/2))/2π, on

@@ -210,3 +210,29 @@ fn a_choice_by_another_model_takes_that_models_fastest_candidate() {
     let none = request.chosen_with(|_| 0.0);
     assert_eq!(none.frequency_hz, request.frequency_hz);
 }
+
+#[test]
+fn a_contact_table_follows_the_inertial_bootstrap_and_replaces_it() {
+    use piezo_drive::controller::model_cache::TableModelKind;
+    let mut cfg = defaults::controller_config();
+    cfg.contact_table = true;
+    let mut ctl = Controller::new(cfg).unwrap();
+    ctl.step(&Inputs { preload_word: WORD_16_N, ..Default::default() });
+    // First the cheap table: the board moves on it while the contact table builds.
+    let first = ctl.model_request().expect("a table is wanted");
+    assert!(first.contact.is_none(), "the bootstrap table is the inertial model's");
+    assert!(ctl.install_model(ModelTable::build(&first)));
+    assert_eq!(ctl.table_model(), Some(TableModelKind::Inertial));
+    // Then the contact model's, asked for although the inertial table fits the preload.
+    let second = ctl.model_request().expect("the contact table is wanted next");
+    assert!(second.contact.is_some());
+    assert!(ctl.install_model(ModelTable::build(&second)));
+    assert_eq!(ctl.table_model(), Some(TableModelKind::Contact));
+    assert!(ctl.model_request().is_none(), "the contact table fits");
+    // Switching the setting off drops it for an inertial one.
+    let mut cfg = *ctl.config();
+    cfg.contact_table = false;
+    ctl.set_config(cfg).unwrap();
+    let third = ctl.model_request().expect("a table for the new setting");
+    assert!(third.contact.is_none());
+}

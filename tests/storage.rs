@@ -205,6 +205,7 @@ fn changed() -> piezo_drive::controller::ControllerConfig {
     c.drive_freq_min_hz = 900.0;
     c.encoder_loss_counts = 120;
     c.idn_c867_compatible = true;
+    c.contact_table = true;
     c
 }
 
@@ -303,12 +304,12 @@ fn record(version: u16, values: &[V]) -> Vec<u8> {
     rec
 }
 
-/// The version-5 layout, written out by hand: every stored setting in table order, in its
+/// The version-8 layout, written out by hand: every stored setting in table order, in its
 /// type's width. A change here is a new format version. Version 4 was the same without the
 /// lowest drive frequency at the end, version 3 also without the calibrated motor, version 2
 /// also without the moving mass; such records still load, what they lack from the defaults.
 #[test]
-fn version_5_record_byte_for_byte_and_versions_4_3_and_2_still_load() {
+fn version_8_record_byte_for_byte_and_versions_7_to_2_still_load() {
     use V::*;
     let v2_fields = [
         F(55.5),       // 0x1 kp
@@ -362,17 +363,24 @@ fn version_5_record_byte_for_byte_and_versions_4_3_and_2_still_load() {
     v6_fields.push(I32(120)); // 0x1023 encoder loss limit (counts)
     let mut v7_fields = v6_fields.clone();
     v7_fields.push(B(1)); // 0x1040 C-867 compatible identity
-    let expected = record(7, &v7_fields);
-    assert_eq!(VERSION, 7);
-    assert_eq!(PAYLOAD_LEN, 173);
-    assert_eq!(RECORD_LEN, 185);
+    let mut v8_fields = v7_fields.clone();
+    v8_fields.push(B(1)); // 0x1024 contact-model table
+    let expected = record(8, &v8_fields);
+    assert_eq!(VERSION, 8);
+    assert_eq!(PAYLOAD_LEN, 174);
+    assert_eq!(RECORD_LEN, 186);
     assert_eq!(storage::encode(&changed()).to_vec(), expected);
     assert_eq!(storage::decode(&expected, &controller_config()), Ok(changed()));
-    // Version 6: everything but the identity setting, which comes from the defaults.
+    // Version 7: everything but the contact-model table setting, from the defaults.
     let d = controller_config();
+    let v7 = record(7, &v7_fields);
+    assert_eq!(v7.len(), 8 + 173 + 4);
+    let mut want = changed();
+    want.contact_table = d.contact_table;
+    assert_eq!(storage::decode(&v7, &d), Ok(want));
+    // Version 6: also the identity setting from the defaults.
     let v6 = record(6, &v6_fields);
     assert_eq!(v6.len(), 8 + 172 + 4);
-    let mut want = changed();
     want.idn_c867_compatible = d.idn_c867_compatible;
     assert_eq!(storage::decode(&v6, &d), Ok(want));
     // Version 5: also the encoder loss limit from the defaults.
@@ -457,6 +465,7 @@ fn version_1_record_still_loads() {
     expected.drive_freq_min_hz = d.drive_freq_min_hz;
     expected.encoder_loss_counts = d.encoder_loss_counts;
     expected.idn_c867_compatible = d.idn_c867_compatible;
+    expected.contact_table = d.contact_table;
     assert_eq!(storage::decode(&v1, &d), Ok(expected));
     // As read from a flash page (erased bytes after it).
     let mut page = vec![0xFFu8; 2048];
@@ -535,6 +544,7 @@ fn every_setting_is_stored_unless_read_only_and_every_default_comes_from_somewhe
         rail_viscous_n_s_per_m: f,
         drive_freq_min_hz: f,
         idn_c867_compatible: true,
+        contact_table: true,
     };
     let a = with_defaults(&REFERENCE_BOARD, ControllerConfig::default());
     let b = with_defaults(&REFERENCE_BOARD, odd);

@@ -131,6 +131,7 @@ fn model_table_within_1_percent_of_stall_of_the_f64_model() {
                 moving_mass_kg: 50.0,
                 rail_coulomb_n: 0.0,
                 rail_viscous_n_s_per_m: 0.0,
+                contact: None,
                 generation: 0,
             };
             let table = ModelTable::build(&request);

@@ -20,6 +20,7 @@ mod closed_loop;
 mod coarse;
 mod commands;
 mod config;
+mod contact_build;
 mod feedback;
 mod fine;
 mod frequency;

@@ -25,6 +25,7 @@
 //! takes it if it still answers the controller's configuration. Until the first table is in, the
 //! profile has no speed to move at (as without a preload reading).
 
+pub use super::contact_build::ContactInputs;
 pub use super::frequency_choice::{FrequencyChoice, FREQ_CANDIDATES};
 use super::{Controller, ControllerConfig};
 use crate::fastmath::{acos_f32, clamp_f32, fx_from_f32};
@@ -69,6 +70,9 @@ pub struct ModelRequest {
     /// holds the foot's thrust net of it.
     pub rail_coulomb_n: f32,
     pub rail_viscous_n_s_per_m: f32,
+    /// The contact model's inputs when the table is to come from it ([`super::contact_build`]),
+    /// None for the inertial model.
+    pub contact: Option<ContactInputs>,
     /// The table settings this request belongs to (bumped by every accepted settings change
     /// that changes [`TableSettings`]): a table built for an older one is refused.
     pub generation: u32,
@@ -86,6 +90,15 @@ impl ModelRequest {
             && near(self.choice.load_n, other.choice.load_n)
             && ModelRequest { preload_n: other.preload_n, choice, ..*self } == *other
     }
+}
+
+/// The model a table was built from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TableModelKind {
+    /// Eqs. 19-22 with the carriage's periodic motion where its speed ripples.
+    Inertial,
+    /// The stator's normal motion and the carriage's orbit on the friction layer.
+    Contact,
 }
 
 /// The controller's view of its thrust limits at one instant ([`Controller::thrust_inputs`]).
@@ -209,7 +222,7 @@ pub(super) fn through_speed_law(
 }
 
 /// The load at which the pairs' mean speed is `v` (pairs ordered by rising load).
-fn load_at_speed(pairs: &[(f32, f32)], v: f32) -> f32 {
+pub(super) fn load_at_speed(pairs: &[(f32, f32)], v: f32) -> f32 {
     let mut seg = pairs.windows(2).last();
     for w in pairs.windows(2) {
         if let [a, b] = w {
@@ -244,7 +257,7 @@ fn guide_friction_n(request: &ModelRequest, speed_mm_s: f32) -> f32 {
 }
 
 /// Takes the guide friction off a row of foot thrusts (at the grid's φp columns).
-fn less_guide_friction(row: &mut [f32; PHASE_POINTS], request: &ModelRequest, foot_mm_s: f32) {
+pub(super) fn less_guide_friction(row: &mut [f32; PHASE_POINTS], request: &ModelRequest, foot_mm_s: f32) {
     if request.rail_coulomb_n == 0.0 && request.rail_viscous_n_s_per_m == 0.0 {
         return;
     }
@@ -530,6 +543,7 @@ pub struct TableSettings {
     normal_force_ratio: f32,
     rail_coulomb_n: f32,
     rail_viscous_n_s_per_m: f32,
+    contact_table: bool,
 }
 
 impl TableSettings {
@@ -545,6 +559,7 @@ impl TableSettings {
             normal_force_ratio: c.normal_force_ratio,
             rail_coulomb_n: c.rail_coulomb_n,
             rail_viscous_n_s_per_m: c.rail_viscous_n_s_per_m,
+            contact_table: c.contact_table,
         }
     }
 }
@@ -633,13 +648,20 @@ impl Controller {
         // The frequency is chosen anew when there is no table or the load it was chosen for has
         // moved ([`super::frequency`]); else a table for a new preload keeps it.
         let load_n = self.choice_load_n();
+        // The contact model's table is built once an inertial one serves (it takes the board
+        // seconds; the inertial one milliseconds) and replaces it.
+        let contact = self.contact_inputs().filter(|_| self.model.table.is_some());
+        let upgrade =
+            contact.is_some() && self.model.table.as_ref().is_some_and(|t| t.request().contact.is_none());
         let kept = self.model.table.as_ref().filter(|t| self.keeps_frequency(t, load_n));
         let pinned =
             self.frequency.pinned_hz().filter(|&f| kept.is_some_and(|t| t.request().frequency_hz != f));
         let choice = match (kept, pinned) {
             // Back to the frequency a failed trial left ([`super::frequency`]).
             (_, Some(f)) => FrequencyChoice::fixed(f, self.cfg.per_volt_at(f), load_n),
-            (Some(t), _) if (preload_n - t.request().preload_n).abs() <= PRELOAD_RESOLVE_N => return None,
+            (Some(t), _) if !upgrade && (preload_n - t.request().preload_n).abs() <= PRELOAD_RESOLVE_N => {
+                return None
+            }
             (Some(t), _) => t.request().choice,
             (None, _) => {
                 let (lowest, highest) = (self.cfg.drive_freq_min_hz, self.cfg.drive_freq_hz);
@@ -663,7 +685,33 @@ impl Controller {
             moving_mass_kg: self.cfg.moving_mass_kg,
             rail_coulomb_n: self.cfg.rail_coulomb_n,
             rail_viscous_n_s_per_m: self.cfg.rail_viscous_n_s_per_m,
+            contact,
             generation: self.model.table_generation,
+        })
+    }
+
+    /// The contact model's inputs when the settings ask for its table and the motor table has
+    /// the constants ([`crate::contact_motor`]).
+    fn contact_inputs(&self) -> Option<ContactInputs> {
+        let motor = self.cfg.motor.contact;
+        (self.cfg.contact_table && motor.is_present()).then_some(ContactInputs {
+            motor,
+            calibration: crate::contact_motor::Calibration {
+                normal_force_ratio: self.cfg.normal_force_ratio,
+                tangential_scale: self.cfg.tangential_scale,
+                mu: self.cfg.mu_dynamic,
+            },
+        })
+    }
+
+    /// Which model the installed table comes from: None before the first table.
+    pub fn table_model(&self) -> Option<TableModelKind> {
+        self.model.table.as_ref().map(|t| {
+            if t.request().contact.is_some() {
+                TableModelKind::Contact
+            } else {
+                TableModelKind::Inertial
+            }
         })
     }
 
@@ -678,7 +726,8 @@ impl Controller {
             && (lowest..=self.cfg.drive_freq_hz).contains(&r.frequency_hz)
             && r.moving_mass_kg == self.cfg.moving_mass_kg
             && r.rail_coulomb_n == self.cfg.rail_coulomb_n
-            && r.rail_viscous_n_s_per_m == self.cfg.rail_viscous_n_s_per_m;
+            && r.rail_viscous_n_s_per_m == self.cfg.rail_viscous_n_s_per_m
+            && (r.contact.is_none() || r.contact == self.contact_inputs());
         if current {
             let old_hz = self.coarse_frequency_hz();
             self.model.table = Some(table);

@@ -7,6 +7,7 @@
 //! candidate, the preparation, one row of the thrust grid or one load of the speed table
 //! (`tools/pil/run` prints the longest on the M4).
 
+use super::contact_build;
 use super::model_cache::{
     thrust_at_zero_speed, thrust_row, thrust_row_from_law, with_guide_friction, ModelRequest, ModelTable,
     LOAD_POINTS, PHASE_POINTS, RIDING_SHARE, VOLT_POINTS,
@@ -100,6 +101,8 @@ pub struct TableBuild {
     speed_mm_s: [f32; LOAD_POINTS],
     /// The last speed of the speed table: where the next root search starts.
     hint: f32,
+    /// Rows of a contact build whose normal motion did not settle (bit j: row j).
+    unsettled: u64,
 }
 
 impl TableBuild {
@@ -115,6 +118,7 @@ impl TableBuild {
             stall_n: 0.0,
             speed_mm_s: [0.0; LOAD_POINTS],
             hint: f32::NAN,
+            unsettled: 0,
         }
     }
 
@@ -122,7 +126,10 @@ impl TableBuild {
     pub fn step(&mut self) -> Option<ModelTable> {
         match self.stage {
             Stage::Candidate(i) => {
-                self.asked.rank_candidate(i, &mut self.best);
+                match self.asked.contact {
+                    Some(c) => contact_build::rank_candidate(&self.asked, &c, i, &mut self.best),
+                    None => self.asked.rank_candidate(i, &mut self.best),
+                }
                 if i + 1 < self.asked.choice.len {
                     self.stage = Stage::Candidate(i + 1);
                 } else {
@@ -132,13 +139,20 @@ impl TableBuild {
                 None
             }
             Stage::Prepare => {
-                self.full = Some(self.full_drive());
+                if self.request.contact.is_none() {
+                    self.full = Some(self.full_drive());
+                }
                 self.stage = Stage::Row(0);
                 None
             }
             Stage::Row(j) => {
-                let riding = self.full.is_some_and(|f| f.riding);
-                let row = thrust_row(&self.request, riding, j);
+                let row = match self.request.contact {
+                    Some(c) => contact_build::contact_row(&self.request, &c, j).unwrap_or_else(|| {
+                        self.unsettled |= 1u64 << j.min(63);
+                        [0.0; PHASE_POINTS]
+                    }),
+                    None => thrust_row(&self.request, self.full.is_some_and(|f| f.riding), j),
+                };
                 self.largest = row.iter().fold(self.largest, |a, &t| a.max(t.abs()));
                 if let Some(slot) = self.thrust_n.get_mut(j) {
                     *slot = row;
@@ -146,10 +160,26 @@ impl TableBuild {
                 if j + 1 < VOLT_POINTS {
                     self.stage = Stage::Row(j + 1);
                 } else {
+                    contact_build::fill_unsettled_rows(&mut self.thrust_n, self.unsettled);
                     self.stall_n = self.stall_force_n();
                     self.stage = Stage::Speed(0);
                 }
                 None
+            }
+            Stage::Speed(_) if self.request.contact.is_some() => {
+                // The contact table's speeds are its top row's (`contact_build::speed_table`).
+                let top_row = self.thrust_n.last().copied().unwrap_or([0.0; PHASE_POINTS]);
+                let top_v = self.request.max_drive_v.max(0.0);
+                let foot_mm_s = self.request.per_volt.foot_speed_mm_s_per_v.to_num::<f32>() * top_v;
+                self.speed_mm_s = contact_build::speed_table(&top_row, foot_mm_s);
+                self.stage = Stage::Done;
+                Some(ModelTable::assemble(
+                    &self.request,
+                    &self.thrust_n,
+                    self.largest,
+                    self.stall_n,
+                    self.speed_mm_s,
+                ))
             }
             Stage::Speed(k) => {
                 let load = self.stall_n * k as f32 / (LOAD_POINTS - 1) as f32;
@@ -192,6 +222,10 @@ impl TableBuild {
     /// carriage (the carriage's when the grid is the carriage's), eq. 19's net of the guide's
     /// Coulomb friction otherwise.
     fn stall_force_n(&self) -> f32 {
+        if self.request.contact.is_some() {
+            let top_row = self.thrust_n.last().copied().unwrap_or([0.0; PHASE_POINTS]);
+            return thrust_at_zero_speed(&top_row).max(0.0);
+        }
         match self.full {
             Some(f) if f.light => {
                 let top_row = self.thrust_n.last().copied().unwrap_or([0.0; PHASE_POINTS]);
