@@ -650,16 +650,16 @@ settings! {
     (0x1023, "Supervision", encoder_loss_counts: i32 = 40;
         "counts", 1.0, Range::Int { lo: 0, hi: i16::MAX as i64 }, Stored since 6,
         "Encoder loss limit under the coarse drive (0: off)"),
-    // The identity clients see first (`*IDN?`); 0x1040 and up: the interface's settings.
-    (0x1040, "Interface", idn_c867_compatible: bool = false;
-        "", 1.0, FLAG, Stored since 7,
-        "Identify as C-867 compatible in *IDN? (0 no, 1 yes: for EPICS motorPIGCS2)"),
     // The model table's source (`controller/contact_build.rs`): the contact model is within 2 %
     // of the sourced plant on every carriage where the inertial model is 20-76 % off, and costs
     // the board a build of seconds in thread mode (docs/firmware.md); the inertial table serves
     // meanwhile. Off by default until the controller is tuned on the sourced motor.
     (0x1024, "Drive", contact_table: bool = false;
         "", 1.0, FLAG, Stored since 8, "Model table from the contact model (1) or the inertial model (0)"),
+    // The identity clients see first (`*IDN?`); 0x1040 and up: the interface's settings.
+    (0x1040, "Interface", idn_c867_compatible: bool = false;
+        "", 1.0, FLAG, Stored since 7,
+        "Identify as C-867 compatible in *IDN? (0 no, 1 yes: for EPICS motorPIGCS2)"),
     // PI's SERVO_UPDATE_TIME: PIPython's data recorder tools read it (`RTR` counts these).
     (0x0E000200, "Hardware",
         servo_update_time_s: f32 = derived(|c| 1.0 / c.loop_hz.max(1) as f32, "one period of the control loop");

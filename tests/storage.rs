@@ -363,8 +363,10 @@ fn version_8_record_byte_for_byte_and_versions_7_to_2_still_load() {
     v6_fields.push(I32(120)); // 0x1023 encoder loss limit (counts)
     let mut v7_fields = v6_fields.clone();
     v7_fields.push(B(1)); // 0x1040 C-867 compatible identity
-    let mut v8_fields = v7_fields.clone();
+                          // Format 8 puts its row in table order, before the identity of format 7.
+    let mut v8_fields = v6_fields.clone();
     v8_fields.push(B(1)); // 0x1024 contact-model table
+    v8_fields.push(B(1)); // 0x1040 C-867 compatible identity
     let expected = record(8, &v8_fields);
     assert_eq!(VERSION, 8);
     assert_eq!(PAYLOAD_LEN, 174);
