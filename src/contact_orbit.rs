@@ -2,8 +2,8 @@
 //! copy of host-sim's `steady_contact` orbit (`ContactModel::period` and its search), issue 28
 //! item 3. The contact force comes in as a [`ContactForce`], made by the core's copy of the
 //! stator's normal motion ([`crate::normal_motion`]) or, in host-sim's tests, from the f64
-//! model's. Nothing in the firmware calls either yet: one operating point costs the M4 several
-//! times the table build's budget (docs/simulator.md).
+//! model's. The board's contact table calls both (`controller/contact_build.rs`; its cost on the
+//! M4 in docs/firmware.md).
 //!
 //! The carriage takes [`BASE_STEPS`] steps per period, each halved (down to 1/[`FINE`] of it)
 //! where the contact starts, ends or changes by more than [`SPLIT_FORCE_N`] within it, and while

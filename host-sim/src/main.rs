@@ -380,8 +380,13 @@ fn cmd_pil(params: &Params, args: PilArgs) -> Result<()> {
             r.step_instructions_max
         );
         println!(
-            "model table (thread-mode task on the board, not the tick): built {} times, max {} instructions",
-            r.background_runs, r.background_instructions_max
+            "model table (thread-mode task on the board, not the tick): built {} times, max {} instructions; \
+             in use: {} (last build {} instructions, {:.2} s at 170 MHz and one cycle each)",
+            r.background_runs,
+            r.background_instructions_max,
+            r.table_model.unwrap_or("none"),
+            r.table_build_instructions,
+            f64::from(r.table_build_instructions) / 170e6
         );
         for (state, s) in &r.per_state {
             println!(

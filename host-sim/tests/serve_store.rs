@@ -62,6 +62,7 @@ const SET: &[(&str, &str, &str)] = &[
     ("0x101F", "2.5", "2.5"),
     ("0x1022", "900", "900"),
     ("0x1023", "120", "120"),
+    ("0x1024", "1", "1"),
     ("0x1040", "1", "1"),
 ];
 
@@ -147,6 +148,7 @@ fn wpa_then_restart_brings_back_every_stored_parameter_and_nothing_else() {
     c.drive_freq_min_hz = 900.0;
     c.encoder_loss_counts = 120;
     c.idn_c867_compatible = true;
+    c.contact_table = true;
     let record = std::fs::read(&store).expect("WPA wrote the store");
     assert_eq!(record, piezo_drive::storage::encode(&expected).to_vec());
 

@@ -30,6 +30,11 @@ pub struct PilArgs {
     /// 1.5 kHz), so that every state of the tick runs on the target against the plant.
     #[arg(long)]
     pub all_states: bool,
+    /// Build the controller's model table from the contact model (setting 0x1024 = 1, sent to
+    /// the target over GCS before the move): the JSON's `table_model` and
+    /// `table_build_instructions` then give the board's contact build on the M4.
+    #[arg(long)]
+    pub contact_table: bool,
     /// Instead of the move: send every GCS command the firmware knows to the core on the
     /// emulated M4, between control periods against the plant, and print the instructions of
     /// each section it runs with the controller locked (the tick held off on the board).
@@ -53,6 +58,7 @@ impl PilArgs {
             load_n: self.load_n,
             fault: self.fault.map(FaultCase::from),
             all_states: self.all_states,
+            contact_table: self.contact_table,
         }
     }
 }

@@ -12,7 +12,8 @@ use crate::harness::sil::{controller_config, Sil};
 use crate::motor::params::Params;
 use crate::motor::plant::ExternalLoad;
 use anyhow::{anyhow, bail, Context, Result};
-use piezo_drive::controller::{Inputs, Outputs, State};
+use piezo_drive::controller::model_cache::TableModelKind;
+use piezo_drive::controller::{ControllerConfig, Inputs, Outputs, State};
 use piezo_drive::pil_wire::{self, Command, GcsReport, Reply, Tick, REPLY_BYTES};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -49,6 +50,8 @@ pub struct PilOptions {
     /// After the move has settled, also reference and step open loop, so that every state of
     /// the tick runs on the target.
     pub all_states: bool,
+    /// Ask for the contact model's table (setting 0x1024) on both builds, as a board would.
+    pub contact_table: bool,
 }
 
 /// Instruction counts of the ticks spent in one state.
@@ -86,6 +89,11 @@ pub struct PilResult {
     /// board, outside the tick): how often it ran and its largest run.
     pub background_runs: u64,
     pub background_instructions_max: u32,
+    /// The model the installed table came from at the end of the run (`"inertial"`,
+    /// `"contact"`), and the instructions of the last table build, whole (on the board: all its
+    /// slices, in thread mode).
+    pub table_model: Option<&'static str>,
+    pub table_build_instructions: u32,
     /// Per state the tick ran in (the state before its step).
     pub per_state: BTreeMap<&'static str, StateTicks>,
     /// Periods whose outputs (DAC words, enable) differ between the M4 and the host build.
@@ -279,10 +287,18 @@ pub fn validate(args: &PilOptions) -> Result<()> {
 pub fn run(p: &Params, args: &PilOptions, elf: &Path) -> Result<PilResult> {
     validate(args)?;
     // The target boots with the firmware's defaults: the plant must be the motor they describe.
-    let cfg = controller_config(p);
-    if cfg != piezo_drive::defaults::controller_config() {
+    // The target boots with the firmware's defaults and is told the carriage's mass (0x101A)
+    // and the table's model (0x1024) over GCS, as a user would; the host build the same.
+    let file_cfg = controller_config(p);
+    let mut cfg = piezo_drive::defaults::controller_config();
+    let mut motor = file_cfg.motor;
+    motor.moving_mass_kg = cfg.motor.moving_mass_kg;
+    let same_motor = ControllerConfig { motor, moving_mass_kg: cfg.moving_mass_kg, ..file_cfg } == cfg;
+    if !same_motor {
         bail!("the parameter file does not describe the motor the firmware's defaults were baked for (PIL runs the firmware's own defaults; regenerate src/motor_table.rs for it first)");
     }
+    cfg.moving_mass_kg = file_cfg.moving_mass_kg;
+    cfg.contact_table = args.contact_table;
     let mid = ((p.amplifier_mid_v() / p.amplifier.output_max_v) * 4095.0).round() as u16;
     let mut sil = Sil::new(p, cfg, args.preload_n, 7)?;
     let to_nm = (args.to_um * 1e3).round() as i64;
@@ -301,6 +317,11 @@ pub fn run(p: &Params, args: &PilOptions, elf: &Path) -> Result<PilResult> {
         load_n = 2.0 * stall;
     }
     let mut target = Target::start(elf)?;
+    let mut told = format!("SPA 1 0x101A {}\n", cfg.moving_mass_kg);
+    if args.contact_table {
+        told.push_str("SPA 1 0x1024 1\n");
+    }
+    target.gcs(told.as_bytes())?;
     let mut result = PilResult {
         to_um: args.to_um,
         preload_n: args.preload_n,
@@ -317,6 +338,8 @@ pub fn run(p: &Params, args: &PilOptions, elf: &Path) -> Result<PilResult> {
         step_instructions_max: 0,
         background_runs: 0,
         background_instructions_max: 0,
+        table_model: None,
+        table_build_instructions: 0,
         per_state: BTreeMap::new(),
         sil_mismatch_ticks: 0,
         sil_first_mismatch_tick: None,
@@ -358,6 +381,7 @@ pub fn run(p: &Params, args: &PilOptions, elf: &Path) -> Result<PilResult> {
             result.background_runs += 1;
             result.background_instructions_max =
                 result.background_instructions_max.max(reply.background_instructions);
+            result.table_build_instructions = reply.background_instructions;
         }
         let s = result.per_state.entry(pil_wire::state_name(state_before)).or_default();
         s.ticks += 1;
@@ -460,6 +484,10 @@ pub fn run(p: &Params, args: &PilOptions, elf: &Path) -> Result<PilResult> {
         }
     }
     target.finish();
+    result.table_model = sil.controller.table_model().map(|m| match m {
+        TableModelKind::Inertial => "inertial",
+        TableModelKind::Contact => "contact",
+    });
     let n = result.ticks.max(1) as f64;
     result.tick_instructions_mean = tick_total as f64 / n;
     result.step_instructions_mean = step_total as f64 / n;

@@ -177,6 +177,7 @@ pub fn hot_paths() {
         moving_mass_kg: 1.0,
         rail_coulomb_n: 0.0,
         rail_viscous_n_s_per_m: 0.0,
+        contact: None,
         generation: 0,
     };
     let mut build = Stat::new();

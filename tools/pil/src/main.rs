@@ -15,11 +15,11 @@
 mod counts;
 
 use core::panic::PanicInfo;
-use core::sync::atomic::{compiler_fence, Ordering};
+use core::sync::atomic::{compiler_fence, AtomicU32, Ordering};
 
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;
-use cortex_m_rt::entry;
+use cortex_m_rt::{entry, exception};
 use cortex_m_semihosting::{debug, hprintln, syscall};
 use piezo_drive::controller::model_cache::ModelTable;
 use piezo_drive::controller::{Controller, DAC_SAMPLES_PER_STEP};
@@ -36,6 +36,35 @@ pub fn counts(f: impl FnOnce()) -> u32 {
     f();
     let end = SYST::get_current();
     start.wrapping_sub(end) & 0x00FF_FFFF
+}
+
+/// Wraps of SysTick's 24-bit counter (its exception): a model-table build outlasts one wrap
+/// (2^24 counts, 671 million instructions at 40 per count).
+static SYSTICK_WRAPS: AtomicU32 = AtomicU32::new(0);
+
+#[exception]
+fn SysTick() {
+    SYSTICK_WRAPS.fetch_add(1, Ordering::Relaxed);
+}
+
+/// SysTick's wraps and count, read consistently.
+fn systick_now() -> (u32, u32) {
+    loop {
+        let wraps = SYSTICK_WRAPS.load(Ordering::Relaxed);
+        let current = SYST::get_current();
+        if SYSTICK_WRAPS.load(Ordering::Relaxed) == wraps {
+            return (wraps, current);
+        }
+    }
+}
+
+/// SysTick counts of `f` however long it runs (the wraps counted by the exception).
+pub fn long_counts(f: impl FnOnce()) -> u64 {
+    let (w0, c0) = systick_now();
+    f();
+    let (w1, c1) = systick_now();
+    let wrapped = u64::from(w1.wrapping_sub(w0)) << 24;
+    (wrapped + u64::from(c0)).saturating_sub(u64::from(c1))
 }
 
 /// Instructions per SysTick count. `cortex_m::asm::delay(n)` (cortex-m 0.7.10) runs a
@@ -255,7 +284,7 @@ fn pil(fd_in: usize, fd_out: usize, k: f32) {
         half = DAC_SAMPLES_PER_STEP - half;
         // The board's thread-mode work (the model table), after the tick and counted apart.
         let background_counts = match ctl.model_request() {
-            Some(request) => counts(|| {
+            Some(request) => long_counts(|| {
                 ctl.install_model(ModelTable::build(&request));
             })
             .max(1),
@@ -270,7 +299,7 @@ fn pil(fd_in: usize, fd_out: usize, k: f32) {
             command_refused: refused,
             tick_instructions: (tick_counts as f32 * k) as u32,
             step_instructions: (step_counts as f32 * k) as u32,
-            background_instructions: if background_counts > 0 { (background_counts as f32 * k) as u32 } else { 0 },
+            background_instructions: if background_counts > 0 { (background_counts as f64 * f64::from(k)) as u32 } else { 0 },
         };
         let bytes: [u8; REPLY_BYTES] = pil_wire::encode_reply(&reply);
         if !write_all(fd_out, &bytes) {
@@ -286,6 +315,7 @@ fn main() -> ! {
     cp.SYST.set_reload(0x00FF_FFFF);
     cp.SYST.clear_current();
     cp.SYST.enable_counter();
+    cp.SYST.enable_interrupt();
     let k = calibrate();
     // Mode 1 = "rb", 5 = "wb" (binary). The host opens its ends in the same order.
     match open(b"pil-in\0", 1) {
