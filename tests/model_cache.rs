@@ -236,3 +236,43 @@ fn a_contact_table_follows_the_inertial_bootstrap_and_replaces_it() {
     let third = ctl.model_request().expect("a table for the new setting");
     assert!(third.contact.is_none());
 }
+
+#[test]
+fn the_contact_table_is_solved_at_the_quiet_preload_and_kept_through_a_move() {
+    let mut cfg = defaults::controller_config();
+    cfg.contact_table = true;
+    let mut ctl = Controller::new(cfg).unwrap();
+    // The drive quiet for a second: the reading settles at 16 N.
+    for _ in 0..10_000 {
+        ctl.step(&Inputs { preload_word: WORD_16_N, ..Default::default() });
+        ctl.background();
+    }
+    let quiet_n = ctl.preload_n().unwrap();
+    assert_eq!(ctl.table_model(), Some(piezo_drive::controller::model_cache::TableModelKind::Contact));
+    assert!(ctl.model_request().is_none());
+    // A move: under drive the force cell reads the mean contact force, here 0.6 N more (40
+    // words), which would ask an inertial table anew (its resolution is 0.05 N).
+    ctl.set_servo(true).unwrap();
+    ctl.move_to(1_000_000).unwrap();
+    let (mut asked, mut driven) = (0, 0);
+    for k in 0..2_000u16 {
+        // The slider follows at about 1 mm/s (2 counts of 50 nm a period), as on the motor.
+        let encoder_raw = k.wrapping_mul(2);
+        ctl.step(&Inputs { preload_word: WORD_16_N + 40, encoder_raw, ..Default::default() });
+        if ctl.drive_voltage_v() > 0.0 {
+            driven += 1;
+            if let Some(r) = ctl.model_request() {
+                asked += 1;
+                assert!(
+                    (r.preload_n - quiet_n).abs() < 1e-3,
+                    "solved at the quiet {quiet_n} N, not {}",
+                    r.preload_n
+                );
+            }
+        }
+    }
+    let moving_n = ctl.preload_n().unwrap();
+    assert!(moving_n - quiet_n > 0.4, "the reading moved {} N", moving_n - quiet_n);
+    assert!(driven > 1_000, "the drive ran {driven} periods");
+    assert_eq!(asked, 0, "no contact table asked for while the drive runs");
+}

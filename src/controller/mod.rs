@@ -454,6 +454,8 @@ impl Controller {
             self.drive.generator.fill(&mut out.dac);
             out.amp_enable = true;
         }
+        let quiet = self.drive_voltage_v() == 0.0;
+        self.model.rest_preload.note(quiet, self.preload_n());
         out
     }
 }

@@ -80,14 +80,17 @@ pub struct ModelRequest {
 
 impl ModelRequest {
     /// Whether a table built for `self` serves `other` as well: the same settings and frequency
-    /// choice, and a preload and a choice load within [`PRELOAD_RESOLVE_N`]. A board that builds in the background
+    /// choice, a preload within the resolution its table asks for ([`contact_resolve_n`] for the
+    /// contact model's) and a choice load within [`PRELOAD_RESOLVE_N`]. A board that builds in the background
     /// keeps its build going while the force cell's noise moves the request's preload.
     pub fn same_table_as(&self, other: &ModelRequest) -> bool {
-        let near = |a: f32, b: f32| (a - b).abs() <= PRELOAD_RESOLVE_N;
+        let resolve_n =
+            if self.contact.is_some() { contact_resolve_n(self.preload_n) } else { PRELOAD_RESOLVE_N };
+        let near = |a: f32, b: f32, by: f32| (a - b).abs() <= by;
         let mut choice = self.choice;
         choice.load_n = other.choice.load_n;
-        near(self.preload_n, other.preload_n)
-            && near(self.choice.load_n, other.choice.load_n)
+        near(self.preload_n, other.preload_n, resolve_n)
+            && near(self.choice.load_n, other.choice.load_n, PRELOAD_RESOLVE_N)
             && ModelRequest { preload_n: other.preload_n, choice, ..*self } == *other
     }
 }
@@ -564,6 +567,42 @@ impl TableSettings {
     }
 }
 
+/// The preload with the drive quiet: what the contact model is solved at. Under drive the force
+/// cell reads the stator's mean contact force, which the contact model itself puts above the
+/// static preload where the foot bounces (5.55 N at 5 N, 1.5 kHz, full drive), and which moves
+/// with the drive: a contact table asked for at that reading is solved at the wrong preload, and
+/// asked for anew at every move (26-45 builds of seconds in one PIL move at 5 N).
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct RestPreload {
+    quiet_periods: u32,
+    preload_n: Option<f32>,
+}
+
+impl RestPreload {
+    /// Quiet periods before the reading counts as static: five of the force-cell filter's time
+    /// constants at its default coefficient 0.01 per period.
+    const SETTLED_PERIODS: u32 = 500;
+
+    /// One period: whether the drive was quiet, and the preload read.
+    pub(super) fn note(&mut self, quiet: bool, reading_n: Option<f32>) {
+        self.quiet_periods = if quiet { self.quiet_periods.saturating_add(1) } else { 0 };
+        if quiet && (self.preload_n.is_none() || self.quiet_periods >= Self::SETTLED_PERIODS) {
+            self.preload_n = reading_n.or(self.preload_n);
+        }
+    }
+
+    pub(super) fn preload_n(&self) -> Option<f32> {
+        self.preload_n
+    }
+}
+
+/// The preload change (N) that asks for a new contact table at `preload_n`: where the table's
+/// thrust would move by 0.5 % of the stall force. The stall force scales with the preload (μ·F̄,
+/// eq. 12), so that is 0.5 % of the preload; never finer than [`PRELOAD_RESOLVE_N`].
+pub fn contact_resolve_n(preload_n: f32) -> f32 {
+    (0.005 * preload_n.abs()).max(PRELOAD_RESOLVE_N)
+}
+
 /// The controller's copy of the model table (see this module) and what it asks for.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct ModelSlot {
@@ -576,6 +615,8 @@ pub(super) struct ModelSlot {
     /// is refused.
     pub(super) table_generation: u32,
     pub(super) table: Option<ModelTable>,
+    /// The preload with the drive quiet, for the contact table.
+    pub(super) rest_preload: RestPreload,
 }
 
 impl ModelSlot {
@@ -586,6 +627,7 @@ impl ModelSlot {
             generation,
             table_generation: generation,
             table: None,
+            rest_preload: RestPreload::default(),
         }
     }
 
@@ -644,22 +686,33 @@ impl Controller {
     /// measured preload or the configuration (see [`model_cache`]); None without a valid preload.
     /// Cheap: a board calls it under its lock, builds the table outside, then installs it.
     pub fn model_request(&self) -> Option<ModelRequest> {
-        let preload_n = self.preload_n()?;
+        let live_n = self.preload_n()?;
         // The frequency is chosen anew when there is no table or the load it was chosen for has
         // moved ([`super::frequency`]); else a table for a new preload keeps it.
         let load_n = self.choice_load_n();
         // The contact model's table is built once an inertial one serves (it takes the board
-        // seconds; the inertial one milliseconds) and replaces it.
+        // seconds; the inertial one milliseconds) and replaces it. It is solved at the preload
+        // read with the drive quiet ([`RestPreload`]), asked for anew when its thrust would move
+        // by 0.5 % of the stall force ([`contact_resolve_n`]), and its frequency is chosen
+        // between moves only: a build of seconds started mid-move would land after it.
         let contact = self.contact_inputs().filter(|_| self.model.table.is_some());
         let upgrade =
             contact.is_some() && self.model.table.as_ref().is_some_and(|t| t.request().contact.is_none());
-        let kept = self.model.table.as_ref().filter(|t| self.keeps_frequency(t, load_n));
+        let (preload_n, resolve_n) = match contact {
+            Some(_) => {
+                let rest_n = self.model.rest_preload.preload_n().unwrap_or(live_n);
+                (rest_n, contact_resolve_n(rest_n))
+            }
+            None => (live_n, PRELOAD_RESOLVE_N),
+        };
+        let hold_choice = contact.is_some() && self.state() == super::State::Moving;
+        let kept = self.model.table.as_ref().filter(|t| hold_choice || self.keeps_frequency(t, load_n));
         let pinned =
             self.frequency.pinned_hz().filter(|&f| kept.is_some_and(|t| t.request().frequency_hz != f));
         let choice = match (kept, pinned) {
             // Back to the frequency a failed trial left ([`super::frequency`]).
             (_, Some(f)) => FrequencyChoice::fixed(f, self.cfg.per_volt_at(f), load_n),
-            (Some(t), _) if !upgrade && (preload_n - t.request().preload_n).abs() <= PRELOAD_RESOLVE_N => {
+            (Some(t), _) if !upgrade && (preload_n - t.request().preload_n).abs() <= resolve_n => {
                 return None
             }
             (Some(t), _) => t.request().choice,
