@@ -276,3 +276,36 @@ fn the_contact_table_is_solved_at_the_quiet_preload_and_kept_through_a_move() {
     assert!(driven > 1_000, "the drive ran {driven} periods");
     assert_eq!(asked, 0, "no contact table asked for while the drive runs");
 }
+
+#[test]
+fn a_table_goes_in_part_by_part_and_only_the_last_part_swaps_it() {
+    use piezo_drive::controller::model_cache::{Staged, TABLE_PARTS};
+    let mut ctl = controller_at(WORD_16_N);
+    let first = ctl.model_request().unwrap();
+    assert!(ctl.install_model(ModelTable::build(&first)));
+    let before = ctl.thrust_limits().unwrap();
+    // A new table for another preload (400 periods at 0.5 N more).
+    for _ in 0..400 {
+        ctl.step(&Inputs { preload_word: WORD_16_N + 40, ..Default::default() });
+    }
+    let next = ModelTable::build(&ctl.model_request().expect("a new preload"));
+    for part in 0..TABLE_PARTS - 1 {
+        assert_eq!(ctl.stage_model(&next, part), Staged::More);
+        // The old table serves until the swap.
+        assert_eq!(ctl.coarse_frequency_hz(), first.chosen().frequency_hz);
+        assert!(ctl.model_request().is_some(), "still the old table in use");
+    }
+    assert_eq!(ctl.stage_model(&next, TABLE_PARTS - 1), Staged::Installed);
+    assert!(ctl.model_request().is_none(), "the new table fits");
+    assert_ne!(ctl.thrust_limits().unwrap(), before);
+    // Out of order: refused, and the staging starts over.
+    assert_eq!(ctl.stage_model(&next, 2), Staged::Refused);
+    // A change of what the table is built from between parts: refused at the check.
+    for part in 0..3 {
+        assert_eq!(ctl.stage_model(&next, part), Staged::More);
+    }
+    let mut cfg = *ctl.config();
+    cfg.moving_mass_kg *= 2.0;
+    ctl.set_config(cfg).unwrap();
+    assert_eq!(ctl.stage_model(&next, 3), Staged::Refused);
+}

@@ -78,7 +78,7 @@ impl Controller {
         // The speed-up limit at the profile's speed before this period's step.
         let v_nm_s = self.motion.profile().velocity_nm_s();
         let (mass_kg, load_x_n) = (self.moving_mass_kg(), self.load.estimate_n());
-        let (table, cfg) = (self.model.table.as_ref(), &self.cfg);
+        let (table, cfg) = (self.model.table(), &self.cfg);
         self.motion
             .step(self.dt_s, v_max, waiting, || speedup_limit_nm_s2(table, mass_kg, load_x_n, v_nm_s, cfg));
     }
@@ -91,8 +91,11 @@ impl Controller {
         // told 2 N on 0.1 kg sat still for good). Crawling on, either the slider follows or the
         // full drive it gets is judged a stall. Without a table there is no model to move by:
         // the profile stays.
-        let crawl =
-            if self.model.table.is_some() { PROFILE_CRAWL_SHARE * self.cfg.approach_speed_nm_s } else { 0.0 };
+        let crawl = if self.model.table().is_some() {
+            PROFILE_CRAWL_SHARE * self.cfg.approach_speed_nm_s
+        } else {
+            0.0
+        };
         let mut v_max = self.speed_limit_nm_s().max(crawl);
         // A reference running away from a slider that cannot follow (an unknown load, a preload
         // change) only builds following error: past some lag the profile waits for the slider.
@@ -115,7 +118,7 @@ impl Controller {
     fn hand_to_fine(&mut self, to_target: f32) -> bool {
         let early = !self.motion.profile().done()
             && self.stop_with_sine_quiet_nm(to_target).is_some_and(|stop| {
-                let swing = self.model.table.as_ref().map_or(0.0, |t| t.swing_nm(self.drive.commanded_v));
+                let swing = self.model.table().map_or(0.0, |t| t.swing_nm(self.drive.commanded_v));
                 let rest = to_target - stop;
                 self.fine_takes(rest + swing) && self.fine_takes(rest - swing)
             });
@@ -172,7 +175,7 @@ impl Controller {
     /// told half its mass (its table from a 0.15 kg carriage's periodic motion) cruised at 1.20
     /// mm/s against the 2 the plant makes while it counted only half (1 mm 1.68 → 1.28× the limit).
     pub(super) fn speed_limit_nm_s(&self) -> f32 {
-        let Some(t) = self.model.table.as_ref() else { return 0.0 };
+        let Some(t) = self.model.table() else { return 0.0 };
         let dir =
             if self.motion.profile().target_nm() >= self.motion.profile().position_nm() { 1.0 } else { -1.0 };
         let load = (dir * self.load.estimate_n()).max(-t.stall_n());

@@ -56,8 +56,7 @@ impl Controller {
         let counted = self.load.counted_along_n(f32::from(dir), braking);
         let load_along = counted + f32::from(dir) * mass * self.motion.accel_ref_nm_s2() * 1e-9;
         self.model
-            .table
-            .as_ref()
+            .table()
             .map_or(0.0, |t| t.voltage_for(v_cmd.abs() * 1e-6, load_along, self.drive.commanded_v))
     }
 
@@ -73,8 +72,7 @@ impl Controller {
             && self.drive.commanded_v > 0.2 * self.cfg.max_drive_v;
         let applied = if observe || self.mass.timing() {
             self.model
-                .table
-                .as_ref()
+                .table()
                 .map_or(0.0, |t| t.thrust_n(self.swing_v(), d * self.feedback.speed_nm_s() * 1e-6))
         } else {
             0.0

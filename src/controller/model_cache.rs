@@ -95,6 +95,24 @@ impl ModelRequest {
     }
 }
 
+/// Parts of a table's hand-over ([`Controller::stage_model`]): the header (the request, the
+/// speed table), the grid's rows in [`TABLE_PARTS`] − 3 parts, the check against the settings,
+/// and the swap.
+pub const TABLE_PARTS: usize = 9;
+/// Grid rows per part.
+const ROWS_PER_PART: usize = VOLT_POINTS.div_ceil(TABLE_PARTS - 3);
+
+/// What a part of a table's hand-over did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Staged {
+    /// Copied beside the table in use; the next part is wanted.
+    More,
+    /// The last part: the new table is in use.
+    Installed,
+    /// Out of order, or the table no longer answers the settings: thrown away.
+    Refused,
+}
+
 /// The model a table was built from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TableModelKind {
@@ -380,6 +398,44 @@ impl ModelTable {
         &self.request
     }
 
+    /// A table of zeros for `cfg`'s motor: what a slot holds before its first table (never read:
+    /// [`ModelSlot`] says which slot is in use).
+    fn placeholder(cfg: &ControllerConfig) -> Self {
+        let per_volt = cfg.per_volt();
+        let request = ModelRequest {
+            per_volt,
+            preload_n: 0.0,
+            max_drive_v: cfg.max_drive_v,
+            frequency_hz: cfg.drive_freq_hz,
+            choice: FrequencyChoice::fixed(cfg.drive_freq_hz, per_volt, 0.0),
+            moving_mass_kg: cfg.moving_mass_kg,
+            rail_coulomb_n: 0.0,
+            rail_viscous_n_s_per_m: 0.0,
+            contact: None,
+            generation: 0,
+        };
+        ModelTable::assemble(&request, &[[0.0; PHASE_POINTS]; VOLT_POINTS], 0.0, 0.0, [0.0; LOAD_POINTS])
+    }
+
+    /// Copies part `part` of `from` into this table: its header (part 0) or a few grid rows.
+    fn copy_part(&mut self, from: &ModelTable, part: usize) {
+        let Some(row_part) = part.checked_sub(1) else {
+            self.request = from.request;
+            self.thrust_scale_n = from.thrust_scale_n;
+            self.index_per_v = from.index_per_v;
+            self.foot_mm_s_per_v = from.foot_mm_s_per_v;
+            self.stall_n = from.stall_n;
+            self.speed_mm_s = from.speed_mm_s;
+            self.swing = from.swing;
+            return;
+        };
+        let rows =
+            (row_part * ROWS_PER_PART).min(VOLT_POINTS)..((row_part + 1) * ROWS_PER_PART).min(VOLT_POINTS);
+        if let (Some(to), Some(src)) = (self.thrust_q.get_mut(rows.clone()), from.thrust_q.get(rows)) {
+            to.copy_from_slice(src);
+        }
+    }
+
     /// How far the carriage swings about its mean line within a drive period at `volts` of drive
     /// (nm, [`Swing`]).
     pub fn swing_nm(&self, volts: f32) -> f32 {
@@ -614,7 +670,13 @@ pub(super) struct ModelSlot {
     /// Counts the configurations that changed [`TableSettings`]: a table built for an older one
     /// is refused.
     pub(super) table_generation: u32,
-    pub(super) table: Option<ModelTable>,
+    /// Two tables: the one in use (`active`) and the one a board fills beside it, a part per
+    /// tick lock ([`Controller::stage_model`]), swapped in by an index change.
+    tables: [ModelTable; 2],
+    /// The table in use, if any.
+    active: Option<usize>,
+    /// The other table holds a complete copy of a finished build's parts up to this one.
+    staged_parts: usize,
     /// The preload with the drive quiet, for the contact table.
     pub(super) rest_preload: RestPreload,
 }
@@ -626,9 +688,22 @@ impl ModelSlot {
             fine_nm_per_v: cfg.fine_nm_per_v(),
             generation,
             table_generation: generation,
-            table: None,
+            tables: [ModelTable::placeholder(cfg), ModelTable::placeholder(cfg)],
+            active: None,
+            staged_parts: 0,
             rest_preload: RestPreload::default(),
         }
+    }
+
+    /// The table in use.
+    pub(super) fn table(&self) -> Option<&ModelTable> {
+        self.active.and_then(|i| self.tables.get(i))
+    }
+
+    /// The slot beside the table in use, and its index.
+    fn spare(&mut self) -> (usize, Option<&mut ModelTable>) {
+        let i = self.active.map_or(0, |a| 1 - a);
+        (i, self.tables.get_mut(i))
     }
 
     /// New settings, with these amplitudes per volt and fine stroke. Where they change what the
@@ -641,7 +716,8 @@ impl ModelSlot {
         self.generation = self.generation.wrapping_add(1);
         if table_changed {
             self.table_generation = self.table_generation.wrapping_add(1);
-            self.table = None;
+            self.active = None;
+            self.staged_parts = 0;
         }
     }
 }
@@ -668,18 +744,18 @@ impl Controller {
 
     /// The installed table, if it was built for this preload (within [`PRELOAD_RESOLVE_N`]).
     pub(super) fn fitting_table(&self, preload_n: f32) -> Option<&ModelTable> {
-        self.model.table.as_ref().filter(|t| (preload_n - t.request().preload_n).abs() <= PRELOAD_RESOLVE_N)
+        self.model.table().filter(|t| (preload_n - t.request().preload_n).abs() <= PRELOAD_RESOLVE_N)
     }
 
     /// The drive frequency of coarse motion (Hz): the installed table's (chosen with it), the
     /// highest allowed before there is one.
     pub fn coarse_frequency_hz(&self) -> f32 {
-        self.model.table.as_ref().map_or(self.cfg.drive_freq_hz, |t| t.request().frequency_hz)
+        self.model.table().map_or(self.cfg.drive_freq_hz, |t| t.request().frequency_hz)
     }
 
     /// The cached limits for the control path: (stall N, no-load mm/s), None before a table.
     pub(super) fn cached_limits(&self) -> Option<(f32, f32)> {
-        self.model.table.as_ref().map(|t| (t.stall_n(), t.no_load_mm_s()))
+        self.model.table().map(|t| (t.stall_n(), t.no_load_mm_s()))
     }
 
     /// The model table the controller wants built, if the installed one does not fit the
@@ -695,9 +771,8 @@ impl Controller {
         // read with the drive quiet ([`RestPreload`]), asked for anew when its thrust would move
         // by 0.5 % of the stall force ([`contact_resolve_n`]), and its frequency is chosen
         // between moves only: a build of seconds started mid-move would land after it.
-        let contact = self.contact_inputs().filter(|_| self.model.table.is_some());
-        let upgrade =
-            contact.is_some() && self.model.table.as_ref().is_some_and(|t| t.request().contact.is_none());
+        let contact = self.contact_inputs().filter(|_| self.model.table().is_some());
+        let upgrade = contact.is_some() && self.model.table().is_some_and(|t| t.request().contact.is_none());
         let (preload_n, resolve_n) = match contact {
             Some(_) => {
                 let rest_n = self.model.rest_preload.preload_n().unwrap_or(live_n);
@@ -706,7 +781,7 @@ impl Controller {
             None => (live_n, PRELOAD_RESOLVE_N),
         };
         let hold_choice = contact.is_some() && self.state() == super::State::Moving;
-        let kept = self.model.table.as_ref().filter(|t| hold_choice || self.keeps_frequency(t, load_n));
+        let kept = self.model.table().filter(|t| hold_choice || self.keeps_frequency(t, load_n));
         let pinned =
             self.frequency.pinned_hz().filter(|&f| kept.is_some_and(|t| t.request().frequency_hz != f));
         let choice = match (kept, pinned) {
@@ -723,7 +798,7 @@ impl Controller {
         };
         // The request's own frequency is where the build stays when the model can rank no
         // candidate ([`ModelRequest::chosen`]): the one in use, else the highest.
-        let (frequency_hz, per_volt) = match self.model.table.as_ref() {
+        let (frequency_hz, per_volt) = match self.model.table() {
             Some(t) if choice.len > 1 && t.request().generation == self.model.table_generation => {
                 (t.request().frequency_hz, t.request().per_volt)
             }
@@ -759,7 +834,7 @@ impl Controller {
 
     /// Which model the installed table comes from: None before the first table.
     pub fn table_model(&self) -> Option<TableModelKind> {
-        self.model.table.as_ref().map(|t| {
+        self.model.table().map(|t| {
             if t.request().contact.is_some() {
                 TableModelKind::Contact
             } else {
@@ -771,22 +846,81 @@ impl Controller {
     /// Takes a table built from [`Self::model_request`]; false (and the table dropped) when the
     /// configuration changed since the request.
     pub fn install_model(&mut self, table: ModelTable) -> bool {
+        self.install_model_from(&table)
+    }
+
+    /// [`Self::install_model`] from where the table was built, at once: every part staged, then
+    /// swapped in.
+    pub fn install_model_from(&mut self, table: &ModelTable) -> bool {
         let r = table.request();
+        // A request made by hand (tests, hosts) may name amplitudes per volt that the settings
+        // would not give: checked here in full. A board's requests come from
+        // [`Self::model_request`], whose generation ties them to the settings.
+        if r.per_volt != self.cfg.per_volt_at(r.frequency_hz) {
+            return false;
+        }
+        let mut part = 0;
+        loop {
+            match self.stage_model(table, part) {
+                Staged::More => part += 1,
+                Staged::Installed => return true,
+                Staged::Refused => return false,
+            }
+        }
+    }
+
+    /// One part of a table's hand-over, for a board that holds the tick off for each part alone
+    /// ([`TABLE_PARTS`] parts: the header, then a few rows each; the whole copy took 5 800
+    /// instructions on the M4): part `k` is copied beside the table in use, and the last part
+    /// swaps it in by an index change. Parts go in order from 0; a part out of order, or a table
+    /// that no longer answers the settings (checked at the last part), is refused and the table
+    /// in use stays.
+    pub fn stage_model(&mut self, table: &ModelTable, part: usize) -> Staged {
+        if part != self.model.staged_parts || part >= TABLE_PARTS {
+            self.model.staged_parts = 0;
+            return Staged::Refused;
+        }
+        let check = TABLE_PARTS - 2;
+        // The whole check against the settings, in a part of its own; the swap then needs only
+        // the generation to be the same (a settings change in between bumps it).
+        let answers = match part {
+            p if p == check => self.answers_settings(table.request()),
+            p if p > check => table.request().generation == self.model.table_generation,
+            _ => true,
+        };
+        if !answers {
+            self.model.staged_parts = 0;
+            return Staged::Refused;
+        }
+        let (spare_index, spare) = self.model.spare();
+        let Some(spare) = spare else { return Staged::Refused };
+        if part + 1 < TABLE_PARTS {
+            if part < check {
+                spare.copy_part(table, part);
+            }
+            self.model.staged_parts = part + 1;
+            return Staged::More;
+        }
+        let old_hz = self.coarse_frequency_hz();
+        self.model.active = Some(spare_index);
+        self.model.staged_parts = 0;
+        self.frequency_switched(old_hz, table.request().frequency_hz);
+        Staged::Installed
+    }
+
+    /// Whether a table built for `r` fits the settings now. Its amplitudes per volt follow from
+    /// the settings its generation names (the motor table, the calibration and the frequency
+    /// are [`TableSettings`]); recomputing them here cost 3 100 instructions on the M4, more
+    /// than a tick lock may hold.
+    fn answers_settings(&self, r: &ModelRequest) -> bool {
         let lowest = self.cfg.drive_freq_min_hz.min(self.cfg.drive_freq_hz);
-        let current = r.generation == self.model.table_generation
-            && r.per_volt == self.cfg.per_volt_at(r.frequency_hz)
+        r.generation == self.model.table_generation
             && r.max_drive_v == self.cfg.max_drive_v
             && (lowest..=self.cfg.drive_freq_hz).contains(&r.frequency_hz)
             && r.moving_mass_kg == self.cfg.moving_mass_kg
             && r.rail_coulomb_n == self.cfg.rail_coulomb_n
             && r.rail_viscous_n_s_per_m == self.cfg.rail_viscous_n_s_per_m
-            && (r.contact.is_none() || r.contact == self.contact_inputs());
-        if current {
-            let old_hz = self.coarse_frequency_hz();
-            self.model.table = Some(table);
-            self.frequency_switched(old_hz, r.frequency_hz);
-        }
-        current
+            && (r.contact.is_none() || r.contact == self.contact_inputs())
     }
 
     /// The lower-rate work done at once: builds and installs the model table if one is wanted.

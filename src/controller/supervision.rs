@@ -51,7 +51,7 @@ impl Controller {
             swing_v: self.fine.sine_swing_v(self.drive.generator.amplitude_v()),
             mass_kg: self.moving_mass_kg(),
         };
-        let table = self.model.table.as_ref();
+        let table = self.model.table();
         let thrust_at = |swing_v: f32, speed_nm_s: f32| table.map(|t| t.thrust_n(swing_v, speed_nm_s * 1e-6));
         if let Some(code) = self.supervisor.update(&period, thrust_at) {
             self.trip(code);

@@ -4,10 +4,11 @@
 //! Two sides, one per execution context (docs/firmware.md, *Who preempts whom*):
 //! - [`table_link_task`], on the communication executor: every millisecond it asks the
 //!   controller (under the tick lock, a few hundred instructions) whether it wants a new table,
-//!   hands the request to the build, and installs a finished table under the tick lock (a copy
-//!   into the controller's slot, measured by `host-sim pil`). The controller keeps the last
-//!   complete table until then; a finished table that no longer answers the settings is refused
-//!   by `Controller::install_model` and thrown away.
+//!   hands the request to the build, and installs a finished table: its parts copied beside the
+//!   table in use, one tick lock each, then swapped in by an index change
+//!   (`Controller::stage_model`; each lock measured on the M4 by `tools/pil/run`). The controller
+//!   keeps the last complete table until then; a finished table that no longer answers the
+//!   settings is refused and thrown away.
 //! - [`table_build_task`], alone in thread mode, the lowest priority: it builds the requested
 //!   table in one go, without yielding. Everything else (the tick, the UART, the preload ADC, the
 //!   flash store, the monitor, this link) preempts it, so a build of seconds holds none of them
@@ -24,7 +25,7 @@ use core::sync::atomic::{AtomicU32, AtomicU8, Ordering};
 
 use embassy_sync::blocking_mutex::CriticalSectionMutex;
 use embassy_time::{Duration, Ticker};
-use piezo_drive::controller::model_cache::{ModelRequest, ModelTable};
+use piezo_drive::controller::model_cache::{ModelRequest, ModelTable, Staged};
 use piezo_drive::controller::table_build::TableBuild;
 
 use super::control::CONTROLLER;
@@ -71,8 +72,16 @@ pub async fn table_link_task() -> ! {
         if BUILD_STATE.load(Ordering::Acquire) == READY {
             // SAFETY: READY hands the buffer to this task until it stores IDLE.
             let table = unsafe { (*RESULT.0.get()).assume_init_ref() };
-            let installed = CONTROLLER.lock(|c| c.as_mut().map(|c| c.install_model(*table)));
-            if installed == Some(Some(true)) {
+            // A part per lock: the tick is held off for a few rows' copy at a time, never the
+            // whole table; the last part swaps it in.
+            let mut part = 0;
+            let staged = loop {
+                match CONTROLLER.lock(|c| c.as_mut().map(|c| c.stage_model(table, part))).flatten() {
+                    Some(Staged::More) => part += 1,
+                    other => break other,
+                }
+            };
+            if staged == Some(Staged::Installed) {
                 defmt::debug!(
                     "model table installed for {} N after {} us",
                     table.request().preload_n,

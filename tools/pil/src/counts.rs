@@ -186,6 +186,38 @@ pub fn hot_paths() {
         build.add(counts(|| table = core::hint::black_box(ModelTable::build(core::hint::black_box(&request)))));
     }
     build.print("ModelTable::build (thread mode on the board)", k);
+    // The hand-over: the board's table link copies a finished table into the controller under
+    // the tick lock (`src/firmware/model.rs`), as `install_model` does here.
+    let mut ctl = Controller::new(controller_config()).unwrap();
+    ctl.step(&Inputs { preload_word: 1310, ..Default::default() });
+    if let Some(r) = ctl.model_request() {
+        let fresh = ModelTable::build(&r);
+        let mut install = Stat::new();
+        for _ in 0..5 {
+            let copy = core::hint::black_box(fresh);
+            install.add(counts(|| {
+                core::hint::black_box(ctl.install_model(core::hint::black_box(copy)));
+            }));
+        }
+        install.print("Controller::install_model, whole (hosts)", k);
+        // The board's hand-over: a part per tick lock, the last one swapping the table in.
+        let mut parts = Stat::new();
+        let mut last = Stat::new();
+        for _ in 0..5 {
+            for part in 0..piezo_drive::controller::model_cache::TABLE_PARTS {
+                let c = counts(|| {
+                    core::hint::black_box(ctl.stage_model(core::hint::black_box(&fresh), part));
+                });
+                if part + 1 == piezo_drive::controller::model_cache::TABLE_PARTS {
+                    last.add(c);
+                } else {
+                    parts.add(c);
+                }
+            }
+        }
+        parts.print("Controller::stage_model, a copying part (one tick lock on the board)", k);
+        last.print("Controller::stage_model, the last part: check and swap (one tick lock)", k);
+    }
     // The same with the drive frequency chosen from 1.2 to 2.2 kHz (a new table for new settings
     // or a new load; one for a new preload keeps the frequency).
     let khz = |f: f32| Fx::from_num(f / 1000.0);
