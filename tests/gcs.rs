@@ -251,6 +251,7 @@ XLT? Get Control-Loop Timing (extension) \n\
 XOS <AxisID> <Cycles> <Amplitude> <Frequency> Open-Loop Stepping With Servo Off (extension) \n\
 XPF? [{<AxisID>}] Get Preload Force In N (extension) \n\
 XTM? [{<AxisID>}] Get Stall Force In N And No-Load Speed In mm/s At Present Preload (extension) \n\
+XTS? Get The Model Table In Use And Its Background Build (extension) \n\
 end of help\n";
     let mut rig = Rig::new();
     rig.transcript(&[(b"HLP?\n", expected)]);
@@ -1346,4 +1347,19 @@ fn each_command_locks_the_controller_as_its_kind_says() {
         rig.gcs.execute_shared(&Pending::Line(line), &mut shared, &mut rig.board, &mut Reply::new());
         assert_eq!(shared.locks, 1, "{}", String::from_utf8_lossy(text));
     }
+}
+
+#[test]
+fn xts_says_which_model_table_is_in_use() {
+    let mut rig = Rig::new();
+    // Ten periods with the preload read: the inertial table is in (the host builds at once).
+    rig.transcript(&[(b"XTS?\n", b"table=inertial \nbuild=idle \nlast_build_us=0\n")]);
+    // The contact model's table asked for (0x1024): the next periods build and swap it in.
+    rig.transcript(&[(b"SPA 1 0x1024 1\n", b"")]);
+    rig.steps(3, Inputs::default());
+    rig.transcript(&[(b"XTS?\n", b"table=contact \nbuild=idle \nlast_build_us=0\n")]);
+    // Before any preload reading there is no table at all.
+    let mut fresh =
+        Rig { gcs: Gcs::new(), ctl: Controller::new(defaults::controller_config()).unwrap(), ..Rig::new() };
+    fresh.transcript(&[(b"XTS?\n", b"table=none \nbuild=idle \nlast_build_us=0\n")]);
 }

@@ -62,6 +62,14 @@ struct ResultBuffer(UnsafeCell<MaybeUninit<ModelTable>>);
 unsafe impl Sync for ResultBuffer {}
 static RESULT: ResultBuffer = ResultBuffer(UnsafeCell::new(MaybeUninit::uninit()));
 
+/// For `XTS?`: whether a build runs, and the last complete one's time.
+pub fn build_status() -> piezo_drive::gcs::TableBuildStatus {
+    piezo_drive::gcs::TableBuildStatus {
+        running: matches!(BUILD_STATE.load(Ordering::Relaxed), ASKED | BUILDING),
+        last_build_us: LAST_BUILD_US.load(Ordering::Relaxed),
+    }
+}
+
 /// The link, on the communication executor: requests, and installs what the build finished.
 #[embassy_executor::task]
 pub async fn table_link_task() -> ! {

@@ -14,7 +14,7 @@ use core::task::Poll;
 use embassy_stm32::usart::BufferedUart;
 use embedded_io_async::{Read, Write};
 use piezo_drive::controller::{Controller, ControllerConfig};
-use piezo_drive::gcs::{Board, Gcs, LinkSession, LoopStats, SharedController};
+use piezo_drive::gcs::{Board, Gcs, LinkSession, LoopStats, SharedController, TableBuildStatus};
 use piezo_drive::recorder::Recorder;
 
 use super::control::{loop_stats, CONTROLLER, RECORDER};
@@ -44,6 +44,9 @@ impl Board for FwBoard {
     }
     fn recorder(&self) -> Option<&Recorder> {
         Some(&RECORDER)
+    }
+    fn table_build(&self) -> TableBuildStatus {
+        super::model::build_status()
     }
 }
 

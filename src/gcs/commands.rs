@@ -6,7 +6,7 @@
 use super::args::no_args;
 use super::call::{Call, GcsResult, Handler, Query, QueryHandler, Settings, SettingsHandler};
 use super::framing::{is_space, Out, Pending};
-use super::info::{cst_query, csv_query, idn_query, sai_query, ssn_query, ver_query, xlt_query};
+use super::info::{cst_query, csv_query, idn_query, sai_query, ssn_query, ver_query, xlt_query, xts_query};
 use super::motion::{fnl, fpl, frf, hlt, mov, mvr, pos, ron, stp, svo, xos};
 use super::settings::{
     acc, acc_query, dec, dec_query, hpa_query, spa, spa_query, tmn_query, tmx_query, vel, vel_query, wpa,
@@ -168,6 +168,7 @@ pub static COMMANDS: &[Command] = &[
         "Get Stall Force In N And No-Load Speed In mm/s At Present Preload (extension)",
         xtm_query,
     ),
+    Command::query("XTS?", "", "Get The Model Table In Use And Its Background Build (extension)", xts_query),
 ];
 
 /// The commands that wait for a pending parameter store ([`Board::store_pending`]): everything

@@ -5,6 +5,7 @@ use super::args::no_args;
 use super::call::{GcsResult, Query};
 use super::framing::Out;
 use super::{error, Gcs};
+use crate::controller::model_cache::TableModelKind;
 
 /// `*IDN?` fields: maker, model, (serial), version (three dot-separated parts at most).
 pub const IDN_MAKER: &str = "(c)2026 piezo-drive project";
@@ -87,6 +88,28 @@ pub(super) fn sai_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
 pub(super) fn cst_query(gcs: &mut Gcs, c: Query) -> GcsResult {
     let Query { args, out, .. } = c;
     gcs.axis_query(args, out, |out| out.s(STAGE_NAME))?;
+    Ok(())
+}
+
+/// `XTS?`: the model table in use (`none`, `inertial`, `contact`), whether a build runs in the
+/// background, and the last build's time (µs).
+pub(super) fn xts_query(_gcs: &mut Gcs, c: Query) -> GcsResult {
+    let Query { args, ctl, board, out } = c;
+    no_args(args)?;
+    let b = board.table_build();
+    out.line();
+    out.s("table=");
+    out.s(match ctl.table_model() {
+        None => "none",
+        Some(TableModelKind::Inertial) => "inertial",
+        Some(TableModelKind::Contact) => "contact",
+    });
+    out.line();
+    out.s("build=");
+    out.s(if b.running { "running" } else { "idle" });
+    out.line();
+    out.s("last_build_us=");
+    out.u(u64::from(b.last_build_us));
     Ok(())
 }
 

@@ -86,6 +86,18 @@ pub trait Board {
     fn recorder(&self) -> Option<&Recorder> {
         None
     }
+    /// The model table's background build (`XTS?`): whether one is running, and how long the
+    /// last complete one took (µs; 0 where the board builds in no time of its own, as hosts do).
+    fn table_build(&self) -> TableBuildStatus {
+        TableBuildStatus::default()
+    }
+}
+
+/// What [`Board::table_build`] reports.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct TableBuildStatus {
+    pub running: bool,
+    pub last_build_us: u32,
 }
 
 /// GCS error numbers used here.

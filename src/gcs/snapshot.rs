@@ -3,7 +3,7 @@
 //! (3 KiB with its model table): the settings, the state's scalars, and the counters that
 //! latch the errors the controller ran into on its own ([`Latch`]).
 
-use crate::controller::model_cache::ThrustInputs;
+use crate::controller::model_cache::{TableModelKind, ThrustInputs};
 use crate::controller::{Controller, ControllerConfig, FaultCode, State};
 use crate::recorder::Source;
 
@@ -49,6 +49,8 @@ pub struct Snapshot {
     /// Only when asked for (`XTM?`): what the thrust limits read, evaluated off the lock (they
     /// may cost a model point).
     thrust: Option<ThrustInputs>,
+    /// The model the table in use came from (`XTS?`).
+    table_model: Option<TableModelKind>,
     pub latch: Latch,
 }
 
@@ -71,6 +73,7 @@ impl Snapshot {
             preload_n: ctl.preload_n(),
             drive_voltage_v: ctl.drive_voltage_v(),
             drive_frequency_hz: ctl.drive_frequency_hz(),
+            table_model: ctl.table_model(),
             thrust: thrust.then(|| ctl.thrust_inputs()),
             latch: Latch::of(ctl),
         }
@@ -112,6 +115,10 @@ impl Snapshot {
     pub fn drive_voltage_v(&self) -> f32 {
         self.drive_voltage_v
     }
+    pub fn table_model(&self) -> Option<TableModelKind> {
+        self.table_model
+    }
+
     pub fn drive_frequency_hz(&self) -> f32 {
         self.drive_frequency_hz
     }

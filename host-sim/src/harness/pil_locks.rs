@@ -73,6 +73,7 @@ pub fn script(p: &Params) -> Vec<Step> {
         "XDF?",
         "XFT?",
         "XTM?",
+        "XTS?",
         "POS?",
         "MOV?",
         "ONT?",
