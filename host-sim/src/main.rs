@@ -513,6 +513,7 @@ fn cmd_sweep(params: &Params, json: bool, preload_n: f64, model: TableModelArg) 
     let table_model = match model {
         TableModelArg::Core => TableModel::Core,
         TableModelArg::Contact => TableModel::Contact(Box::new(params.clone())),
+        TableModelArg::CoreContact => TableModel::CoreContact,
     };
     let rows = host_sim::harness::sweep::run(params, preload_n, &table_model, |done, total| {
         if show {

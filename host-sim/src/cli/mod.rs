@@ -222,6 +222,8 @@ pub enum TableModelArg {
     Core,
     /// Host-sim's contact model of each carriage.
     Contact,
+    /// The core's own build from its contact model (setting 0x1024 = 1), as on a board told to.
+    CoreContact,
 }
 
 /// `--friction`: the friction law of the time-domain plant ([`FrictionModel`], which has no clap

@@ -18,6 +18,9 @@ pub enum TableModel {
     /// The contact model of this parameter file (the firmware's belief; the carriage's mass is
     /// the one the controller is told).
     Contact(Box<Params>),
+    /// The core's own build from its copy of the contact model (setting 0x1024 = 1), as a board
+    /// told to use it builds it.
+    CoreContact,
 }
 
 /// The table for `request` from the contact model of `p` at the static preload `static_n` (N):

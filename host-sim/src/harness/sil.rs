@@ -281,7 +281,7 @@ impl Sil {
         self.last_step_ns = u64::try_from(t0.elapsed().as_nanos()).unwrap_or(u64::MAX);
         // The board's lower-rate task (the model table), done here between periods.
         match &self.table_model {
-            TableModel::Core => self.controller.background(),
+            TableModel::Core | TableModel::CoreContact => self.controller.background(),
             TableModel::Contact(p) => {
                 self.rest_preload.note(&self.controller);
                 if let Some(r) = self.controller.model_request() {

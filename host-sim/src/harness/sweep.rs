@@ -154,6 +154,11 @@ fn one(p: &Params, preload_n: f64, case: Case, table_model: &TableModel) -> anyh
     // and the band where it holds (docs/simulator.md) for the frequency to be chosen from.
     let table_model = match table_model {
         TableModel::Core => TableModel::Core,
+        TableModel::CoreContact => {
+            cfg.contact_table = true;
+            cfg.drive_freq_min_hz = CONTACT_LOWEST_HZ;
+            TableModel::Core
+        }
         TableModel::Contact(_) => {
             cfg.drive_freq_min_hz = CONTACT_LOWEST_HZ;
             TableModel::Contact(Box::new(p.clone()))
