@@ -87,6 +87,36 @@ impl Grid {
     }
 }
 
+impl Grid {
+    /// As [`Grid::conditions`], the loads as fractions of the stall force of the contact model
+    /// (`steady_contact`, the model with the contact's timing and the file's carriage) instead
+    /// of the closed form's. On a light carriage the closed form's stall is several times the
+    /// plant's (0.1 kg, sourced plant, 5 N, 60 V: 1.75 N against about 0.3 N), and most of the
+    /// grid's loaded rows then run backwards; the contact model is within a few per cent of the
+    /// plant from 0.1 to 50 kg.
+    pub fn conditions_at_contact_stall(&self, p: &Params) -> Vec<Condition> {
+        use crate::motor::steady::OperatingPoint;
+        use crate::motor::steady_contact::{ContactModel, ContactProfile};
+        let mut out = Vec::with_capacity(self.len());
+        for &preload_n in &self.preloads_n {
+            for &voltage_v in &self.voltages_v {
+                for &frequency_hz in &self.frequencies_hz {
+                    let op = OperatingPoint { preload_n, voltage_v, frequency_hz };
+                    let profile = std::sync::Arc::new(ContactProfile::new(p, op));
+                    for &direction in &self.directions {
+                        let stall = ContactModel::with_profile(p, profile.clone(), direction).stall_force_n();
+                        let c0 = Condition { preload_n, voltage_v, frequency_hz, load_n: 0.0, direction };
+                        for &fr in &self.load_fractions {
+                            out.push(Condition { load_n: fr * stall, ..c0 });
+                        }
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
 /// Noiseless plant speeds (mm/s) at each condition; both cores through rayon. `progress` is
 /// called from worker threads with the number of finished points.
 pub fn plant_speeds_mm_s(p: &Params, conds: &[Condition], progress: &(dyn Fn() + Sync)) -> Vec<f64> {

@@ -4,8 +4,8 @@
 //!
 //! Statistics (all in weighted units, weights `|v| + 0.25·v̄`, noise scale `s` from
 //! difference-based pseudo-residuals along load within each measured curve):
-//! - consistency: `R = (SSR/(n − p))/s²`; below [`Options::consistent_ratio`] the residuals are
-//!   noise and nothing is missing;
+//! - consistency: `R = (SSR/(n − p))/s²`; below its noise limit ([`Thresholds`]) and with no
+//!   condition's structure above noise the residuals are noise and nothing is missing;
 //! - score: Rao's score statistic of each candidate's strength at zero, after projecting out what
 //!   the current parameters can explain (one-sided where the strength is one-sided);
 //! - likelihood ratio `LR = (SSR₀ − SSR₁)/s²`, `ΔBIC = LR − k·ln n`;
@@ -36,25 +36,24 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 use std::path::PathBuf;
 
-/// Decision thresholds of the workflow.
+/// Decision settings of the workflow. The thresholds themselves are not set here: they follow
+/// from each data set's row count and noise estimate ([`Thresholds`]).
 #[derive(Debug, Clone)]
 pub struct Options {
     pub max_effects: usize,
     pub folds: usize,
-    /// Residual variance over noise variance below which nothing is missing.
-    pub consistent_ratio: f64,
-    /// Minimum ΔBIC of a refit with the candidate.
-    pub min_delta_bic: f64,
-    /// Minimum relative improvement of the cross-validated RMS.
-    pub min_cv_improvement: f64,
+    /// Significance level of every test against the noise: the consistency ratio R, the
+    /// residual structure along each condition, and (shared among a round's candidates) the
+    /// likelihood ratio behind ΔBIC. An accepted effect whose refit leaves residual structure
+    /// along one of its signature conditions that pure noise would exceed with probability below
+    /// `signature_alpha` is a partial candidate, not a named effect.
+    pub signature_alpha: f64,
+    /// Standard errors of a held-out RMS by which a candidate's cross-validated RMS must improve
+    /// ([`Thresholds::cv_improvement`]).
+    pub cv_standard_errors: f64,
     /// ΔBIC margin within which candidates form an ambiguity group (candidates whose refits both
     /// leave residuals consistent with noise are grouped whatever their ΔBIC).
     pub ambiguity_bic: f64,
-    /// Significance level of the signature test: an accepted effect whose refit leaves residual
-    /// structure along one of its signature conditions that pure noise would exceed with
-    /// probability below `signature_alpha` (χ² quantile for that condition's levels − 1) is a
-    /// partial candidate, not a named effect.
-    pub signature_alpha: f64,
     /// Which effects the library offers (default: all); a name that is not in
     /// [`EFFECT_NAMES`] makes [`analyze`] fail.
     pub library: Vec<&'static str>,
@@ -65,15 +64,90 @@ impl Default for Options {
         Options {
             max_effects: 3,
             folds: 5,
-            consistent_ratio: 2.0,
-            min_delta_bic: 10.0,
-            min_cv_improvement: 0.15,
-            ambiguity_bic: 10.0,
-            // 0.1 % per condition: over the ≤ 3 signature conditions of each of the ≤ 3 accepted
-            // effects, noise alone demotes a correct effect with probability < 1 %.
+            // 0.1 % per test: over the ≤ 3 signature conditions of each of the ≤ 3 accepted
+            // effects, noise alone demotes a correct effect with probability < 1 %; over the five
+            // conditions and R of the verdict, noise alone denies "nothing missing" with
+            // probability < 0.6 %.
             signature_alpha: 1e-3,
+            cv_standard_errors: 2.0,
+            ambiguity_bic: 10.0,
             library: EFFECT_NAMES.to_vec(),
         }
+    }
+}
+
+/// The decision thresholds for one data set: `n` rows, noise scale estimated from `m`
+/// pseudo-residuals, `L` library candidates per round, significance level α
+/// ([`Options::signature_alpha`]). None is a tuned constant:
+/// - **consistency ratio R** = (SSR/(n − p))/s². Under pure noise SSR/σ² is χ²(n − p) and
+///   s²/σ² is χ²(m)/m, so R is F(n − p, m); "within noise" is R below its 1 − α quantile (on the
+///   compact grid's 192 rows, m ≈ 35: 2.50; with the noise known, m → ∞, it would be 1.35: the
+///   uncertainty of the noise estimate is most of the limit; a board's 36 rows with m = 9: 8.5).
+///   With no pseudo-residuals (m = 0) the χ²(n − p)/(n − p) quantile.
+/// - **ΔBIC** = LR − k·ln n with LR = (SSR₀ − SSR₁)/s², χ²(k) under noise for a candidate of k
+///   parameters. A round tests L candidates, so a candidate is accepted only when its LR is above
+///   the χ²(k) quantile at α/L (Bonferroni: noise alone accepts one of the L with probability
+///   ≤ α); as ΔBIC that is `quantile(α/L, k) − k·ln n` (192 rows, L = 8, k = 1: 9.5; k = 2: 7.5;
+///   36 rows: 11.1 and 10.8).
+/// - **cross-validation gain** = 1 − RMS_cv(with)/RMS_cv(without) over the n held-out rows. An
+///   RMS of n independent residuals has a relative standard error of 1/√(2n), a difference of
+///   two of them 1/√n; the gain must exceed [`Options::cv_standard_errors`] (2) of those:
+///   2/√n (192 rows: 0.144, 300: 0.115, 54: 0.27).
+#[derive(Debug, Clone, Serialize)]
+pub struct Thresholds {
+    pub rows: usize,
+    /// Pseudo-residuals behind the base fit's noise estimate (m).
+    pub noise_dof: usize,
+    /// Candidates tested in a round (L).
+    pub candidates_per_round: usize,
+    pub alpha: f64,
+    /// R below which the base model's residuals are noise (its limit for the final model is
+    /// `consistency_limit_after`).
+    pub consistency_ratio: f64,
+    pub consistency_ratio_after: f64,
+    /// Minimum ΔBIC of a candidate of one and of two fitted parameters.
+    pub delta_bic: [f64; 2],
+    pub cv_improvement: f64,
+}
+
+impl Thresholds {
+    pub fn new(rows: usize, noise_dof: usize, candidates_per_round: usize, opts: &Options) -> Self {
+        let alpha = opts.signature_alpha;
+        let each = alpha / candidates_per_round.max(1) as f64;
+        let bic = |k: usize| chi2::quantile_upper(each, k) - k as f64 * (rows as f64).ln();
+        Thresholds {
+            rows,
+            noise_dof,
+            candidates_per_round,
+            alpha,
+            consistency_ratio: consistency_limit(rows, BASE_PARAMS, noise_dof, alpha),
+            consistency_ratio_after: f64::NAN,
+            delta_bic: [bic(1), bic(2)],
+            cv_improvement: opts.cv_standard_errors / (rows.max(1) as f64).sqrt(),
+        }
+    }
+
+    /// Minimum ΔBIC of a candidate of `k` fitted parameters.
+    pub fn min_delta_bic(&self, k: usize) -> f64 {
+        let n = self.rows as f64;
+        match k {
+            1 | 2 => self.delta_bic[k - 1],
+            _ => {
+                let each = self.alpha / self.candidates_per_round.max(1) as f64;
+                chi2::quantile_upper(each, k) - k as f64 * n.ln()
+            }
+        }
+    }
+}
+
+/// The R below which residuals of a fit of `p` parameters to `n` rows are noise, with the noise
+/// estimated from `m` pseudo-residuals ([`Thresholds`]).
+pub fn consistency_limit(n: usize, p: usize, m: usize, alpha: f64) -> f64 {
+    let d1 = n.saturating_sub(p).max(1);
+    if m > 0 {
+        chi2::f_quantile_upper(alpha, d1, m)
+    } else {
+        chi2::quantile_upper(alpha, d1) / d1 as f64
     }
 }
 
@@ -112,6 +186,9 @@ pub struct Candidate {
     /// Residual structure of this refit along every condition (its signature ones flagged).
     pub structure: Vec<AxisStructure>,
     pub params: Vec<NamedParam>,
+    /// Its strength's interval the data allow: the refit's value ± 2σ (linearised), clipped to
+    /// the law's range, per named parameter (`null` for an unbounded end).
+    pub size_interval: Vec<SizeInterval>,
     /// Sum of squares of its refit (weighted residuals).
     #[serde(skip)]
     pub ssr: f64,
@@ -119,6 +196,33 @@ pub struct Candidate {
     pub fit_x: Vec<f64>,
     #[serde(skip)]
     pub pred: Vec<f64>,
+}
+
+/// The range of one named parameter of a candidate that the data allow (± 2σ of its fitted
+/// strength, mapped to the named parameter; an end at the law's zero strength, e.g. an infinite
+/// corner frequency, means the data cannot tell the effect from none).
+#[derive(Debug, Clone, Serialize)]
+pub struct SizeInterval {
+    pub name: String,
+    pub value: f64,
+    pub lo: Option<f64>,
+    pub hi: Option<f64>,
+}
+
+/// The workflow's overall verdict.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// R and the structure along every condition within noise, nothing named or partial.
+    NothingMissing,
+    /// At least one effect named (its verdict says whether structure is left).
+    Named,
+    /// Nothing named, but structure above noise along at least one condition
+    /// (`unexplained_structure`) that no library effect explains at this noise.
+    StructureUnexplained,
+    /// Nothing named and no condition above noise, but R above its noise limit: an excess spread
+    /// over all conditions (or a partial candidate) that no library effect explains.
+    ExcessUnexplained,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -286,7 +390,20 @@ pub struct GapReport {
     /// Residual variance / noise variance of the calibrated base model and of the final model.
     pub consistency_before: f64,
     pub consistency_after: f64,
+    /// The thresholds this data set's row count and noise give ([`Thresholds`]).
+    pub thresholds: Thresholds,
+    /// True only when nothing is named or partial, R is below its noise limit and the structure
+    /// along every condition is within noise (`outcome` = `nothing_missing`).
     pub nothing_missing: bool,
+    pub outcome: Outcome,
+    /// Conditions whose residual structure in the final fit is above noise (χ²/dof above its
+    /// limit at `signature_alpha`), most structured first.
+    pub unexplained_structure: Vec<AxisStructure>,
+    /// Where structure or an excess is left: the last round's candidates whose likelihood ratio
+    /// says they explain part of it (ΔBIC at least its threshold) but which were not added
+    /// (cross-validation gain below its threshold, or a partial share), each with the size
+    /// interval the data allow, best ΔBIC first.
+    pub unsized_candidates: Vec<Candidate>,
     pub base_calibration: Vec<BaseFit>,
     pub final_calibration: Vec<BaseFit>,
     pub elapsed_s: f64,
@@ -305,6 +422,25 @@ struct State {
     /// Pseudo-residuals behind `s` (0: `s` is the residual scale, not a noise estimate).
     noise_dof: usize,
     ratio: f64,
+}
+
+impl State {
+    /// Whether this fit's residuals are noise: R below its limit and no condition's structure
+    /// above noise. Returns that, R's limit and the conditions above noise (most structured
+    /// first).
+    fn within_noise(&self, data: &Data, opts: &Options) -> (bool, f64, Vec<AxisStructure>) {
+        let limit =
+            consistency_limit(data.len(), self.model.n_params(), self.noise_dof, opts.signature_alpha);
+        let mut above: Vec<AxisStructure> =
+            axis_structure(data, &self.fit.resid, (self.s, self.noise_dof), opts.signature_alpha, &[])
+                .into_iter()
+                .filter(|a| !a.consistent_with_noise)
+                .collect();
+        above.sort_by(|a, b| {
+            (b.chi2_per_dof / b.noise_limit_per_dof).total_cmp(&(a.chi2_per_dof / a.noise_limit_per_dof))
+        });
+        (self.ratio < limit && above.is_empty(), limit, above)
+    }
 }
 
 fn base_starts(n: usize) -> Vec<Vec<f64>> {
@@ -465,6 +601,36 @@ fn effect_named_params(model: &Model, fit: &Fit, effect: Effect, s: f64) -> Vec<
         .collect()
 }
 
+/// The interval of each of `effect`'s named parameters that the fit allows: its fitted strength
+/// ± 2σ (linearised, noise scale `s`), the others at their values, clipped to the law's range and
+/// mapped to the named parameter.
+fn size_interval(model: &Model, fit: &Fit, effect: Effect, s: f64) -> Vec<SizeInterval> {
+    let Some(off) = model.offset(effect) else { return Vec::new() };
+    let defs = effect.fit_params();
+    let x = &fit.x[off..off + defs.len()];
+    let cov = covariance(fit, s);
+    named_values(effect, x)
+        .iter()
+        .enumerate()
+        .map(|(j, (name, value))| {
+            let sd = cov.as_ref().map_or(f64::NAN, |c| c[(off + j, off + j)].max(0.0).sqrt());
+            let end = |sign: f64| {
+                let mut xe = x.to_vec();
+                xe[j] = (x[j] + sign * 2.0 * sd).clamp(defs[j].lo, defs[j].hi);
+                named_values(effect, &xe)[j].1
+            };
+            let (a, b) = (end(-1.0), end(1.0));
+            let (lo, hi) = if a <= b { (a, b) } else { (b, a) };
+            SizeInterval {
+                name: (*name).to_string(),
+                value: *value,
+                lo: lo.is_finite().then_some(lo),
+                hi: hi.is_finite().then_some(hi),
+            }
+        })
+        .collect()
+}
+
 fn base_calibration(model: &Model, fit: &Fit, s: f64) -> Vec<BaseFit> {
     let cov = covariance(fit, s);
     let file = [
@@ -579,7 +745,15 @@ fn structure(data: &Data, resid: &[f64], s: f64) -> Vec<(Axis, usize, f64)> {
                     None => groups.push((k, 1, *r)),
                 }
             }
-            let chi2: f64 = groups.iter().map(|g| g.2 * g.2 / g.1 as f64).sum::<f64>() / (s * s);
+            // Σ n_l·(r̄_l − r̄)²: the spread between the levels about the overall mean r̄, which
+            // has levels − 1 degrees of freedom under noise whether or not the fit's parameters
+            // absorb the overall level. An offset common to all rows is not structure along any
+            // condition (R measures it); counted in, a model 1 % off everywhere showed χ²/dof 24
+            // along the two drive senses of a symmetric plant.
+            let total: f64 = resid.iter().take(n).sum();
+            let between =
+                groups.iter().map(|g| g.2 * g.2 / g.1 as f64).sum::<f64>() - total * total / n as f64;
+            let chi2 = between.max(0.0) / (s * s);
             (axis, groups.len(), chi2)
         })
         .collect()
@@ -650,14 +824,15 @@ pub fn analyze(
     let data = stages::checked_data(rows)?;
     let (start, before) = stages::calibrate_base(base, &data, progress);
     let (library, not_identifiable) = stages::identifiable_library(library, base, &data);
-    let mut selection = stages::select_effects(start, &library, &data, opts, progress);
+    let thresholds = Thresholds::new(data.len(), start.noise_dof, library.len(), opts);
+    let mut selection = stages::select_effects(start, &library, &data, (opts, &thresholds), progress);
     // Name only the effects whose own signature conditions are consistent with noise in the final
     // fit; the others are partial candidates and leave the model, which is refitted.
     let signature_tests = stages::signature_tests(&selection.state, &data, opts);
     let (verdicts, partial_candidates) =
         stages::decide_tiers(&mut selection, &signature_tests, before.ssr, &data, opts);
     let naming = stages::Naming { signature_tests, verdicts, partial_candidates };
-    Ok(stages::build_report(&data, opts, before, selection, naming, not_identifiable, t0))
+    Ok(stages::build_report(&data, (opts, thresholds), before, selection, naming, not_identifiable, t0))
 }
 
 /// What `host-sim gap` is asked for (the workflow's thresholds are [`Options`]).
@@ -700,4 +875,37 @@ pub fn run(args: GapOptions, params: &Params) -> Result<()> {
         report::print_summary(&report, &args.out);
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The thresholds against their closed forms: the χ²(1) quantile at α/L is z² with z the
+    /// normal quantile (P(|Z| > 3.836107) = 1.25e-4), χ²(2)'s is −2·ln(α/L), and 2/√n.
+    #[test]
+    fn thresholds_follow_from_rows_and_noise() {
+        let opts = Options::default();
+        let t = Thresholds::new(192, 35, 8, &opts);
+        let ln_n = 192f64.ln();
+        assert!((t.delta_bic[0] - (3.836_107f64.powi(2) - ln_n)).abs() < 1e-4, "{}", t.delta_bic[0]);
+        assert!(
+            (t.delta_bic[1] - (-2.0 * (1e-3f64 / 8.0).ln() - 2.0 * ln_n)).abs() < 1e-6,
+            "{}",
+            t.delta_bic[1]
+        );
+        assert!((t.cv_improvement - 2.0 / 192f64.sqrt()).abs() < 1e-12);
+        // R's limit is F(n − p, m)'s 1 − α quantile: above the known-noise χ² limit, below the
+        // ratio a handful of pseudo-residuals would allow, and falling as m grows.
+        let known = consistency_limit(192, BASE_PARAMS, 0, 1e-3);
+        let r = t.consistency_ratio;
+        let many = consistency_limit(192, BASE_PARAMS, 100_000, 1e-3);
+        eprintln!(
+            "R limits: m = 35 {r:.3}, m → ∞ {many:.3}, χ² {known:.3}; board (36 rows, m = 9) {:.2}",
+            consistency_limit(36, 3, 9, 1e-3)
+        );
+        assert!((many - known).abs() < 0.01 * known, "{many} vs {known}");
+        assert!(r > known && r < consistency_limit(192, BASE_PARAMS, 10, 1e-3));
+        assert!(chi2::f_upper_tail(r, 189, 35) > 0.9e-3 && chi2::f_upper_tail(r, 189, 35) < 1.1e-3);
+    }
 }

@@ -97,21 +97,11 @@ pub fn markdown(r: &GapReport, measured: &Path) -> String {
     );
     let _ =
         writeln!(s, "\nNoise estimate (difference-based, at the mean speed): {:.4} mm/s.\n", r.noise_mm_s);
-    if r.nothing_missing {
-        let _ = writeln!(
-            s,
-            "**Nothing missing**: the calibrated base model explains the data to within the noise \
-             (or no candidate passed ΔBIC and cross-validation).\n"
-        );
-    } else if r.named_effects.is_empty() {
-        let _ = writeln!(
-            s,
-            "**No library effect explains the data.** Residual variance is {:.2}× the noise's; \
-             the closest effects explain less than half of the excess over noise: see *Partial \
-             candidates*.\n",
-            r.consistency_after
-        );
-    } else {
+    // The named effects have their own paragraph below.
+    for line in verdict_lines(r).iter().filter(|l| !l.starts_with("named effects:")) {
+        let _ = writeln!(s, "{line}\n");
+    }
+    if !r.named_effects.is_empty() {
         let _ = writeln!(s, "**Named effects** (in the order accepted): {}\n", r.named_effects.join(", "));
         for v in r.verdicts.iter().filter(|v| v.tier == super::Tier::NamedWithStructureLeft) {
             let _ = writeln!(
@@ -313,18 +303,83 @@ fn signature_section(s: &mut String, r: &GapReport) {
     let _ = writeln!(s);
 }
 
+/// The verdict in words: nothing missing (and why that may be said), the named effects, or the
+/// structure or excess left that no library effect explains, with the candidates the data cannot
+/// size and the intervals they allow; then the thresholds and what they follow from.
+pub fn verdict_lines(r: &GapReport) -> Vec<String> {
+    let t = &r.thresholds;
+    let mut out = Vec::new();
+    match r.outcome {
+        super::Outcome::NothingMissing => out.push(format!(
+            "nothing missing: R {:.2} is below its noise limit {:.2}, and the residual structure along \
+             every condition is within noise",
+            r.consistency_after, t.consistency_ratio_after
+        )),
+        super::Outcome::Named => out.push(format!("named effects: {}", r.named_effects.join(", "))),
+        super::Outcome::StructureUnexplained => {
+            for a in &r.unexplained_structure {
+                out.push(format!(
+                    "structure along {} that no library effect explains at this noise: χ²/dof {:.1} \
+                     against the noise's {:.1} ({} levels; R {:.2}, its limit {:.2})",
+                    a.condition,
+                    a.chi2_per_dof,
+                    a.noise_limit_per_dof,
+                    a.levels,
+                    r.consistency_after,
+                    t.consistency_ratio_after
+                ));
+            }
+        }
+        super::Outcome::ExcessUnexplained => out.push(format!(
+            "no library effect explains the data: residual variance {:.2}× the noise's (limit {:.2}){}",
+            r.consistency_after,
+            t.consistency_ratio_after,
+            if r.partial_candidates.is_empty() { "" } else { "; see the partial candidates" }
+        )),
+    }
+    if r.outcome == super::Outcome::Named {
+        for a in &r.unexplained_structure {
+            out.push(format!(
+                "structure left along {}: χ²/dof {:.1} against the noise's {:.1}",
+                a.condition, a.chi2_per_dof, a.noise_limit_per_dof
+            ));
+        }
+    }
+    for c in &r.unsized_candidates {
+        let sizes: Vec<String> = c
+            .size_interval
+            .iter()
+            .map(|i| {
+                let end = |v: Option<f64>| v.map_or("∞".to_string(), |v| format!("{v:.4}"));
+                format!("{} {:.4} ({} to {})", i.name, i.value, end(i.lo), end(i.hi))
+            })
+            .collect();
+        out.push(format!(
+            "candidate, not added: {} (ΔBIC {:.1}, threshold {:.1}; cross-validation gain {:.3}, threshold \
+             {:.3}); the data allow {}",
+            c.name,
+            c.delta_bic,
+            t.min_delta_bic(c.effect.fit_params().len()),
+            c.cv_improvement,
+            t.cv_improvement,
+            sizes.join(", ")
+        ));
+    }
+    out.push(format!(
+        "thresholds from {} rows and {} noise pseudo-residuals at α = {}: R < {:.2}, ΔBIC ≥ {:.1} (one \
+         parameter) / {:.1} (two), cross-validation gain ≥ {:.3}",
+        t.rows, t.noise_dof, t.alpha, t.consistency_ratio, t.delta_bic[0], t.delta_bic[1], t.cv_improvement
+    ));
+    out
+}
+
 pub fn print_summary(r: &GapReport, out: &Path) {
     println!("rows {}, noise ≈ {:.4} mm/s, {:.1} s", r.rows, r.noise_mm_s, r.elapsed_s);
     println!("gap before {:.4} (residual/noise variance {:.2})", r.gap_before, r.consistency_before);
-    if r.nothing_missing {
-        println!("nothing missing: the base model explains the data to within noise");
-    } else if r.named_effects.is_empty() {
-        println!(
-            "named effects: none (no library effect explains the data; residual/noise variance {:.2})",
-            r.consistency_after
-        );
-    } else {
-        println!("named effects: {}", r.named_effects.join(", "));
+    for line in verdict_lines(r) {
+        println!("{line}");
+    }
+    if !r.named_effects.is_empty() {
         for e in &r.final_effects {
             for p in &e.params {
                 println!("  {}.{} = {:.5} ± {:.5}", e.name, p.name, p.value, p.std_dev);

@@ -12,8 +12,8 @@ use super::refits::Refits;
 use super::{
     all_rows, axis_structure, base_calibration, base_starts, candidate_starts, clears_signature, cv_rms, dof,
     effect_named_params, ratio, score, separating_experiment, structure, sub_x, Ambiguity, AxisStructure,
-    Candidate, FinalEffect, GapReport, Options, PartialCandidate, ProgressFn, Removed, SignatureTest, State,
-    Structure, Tier, Verdict,
+    Candidate, FinalEffect, GapReport, Options, Outcome, PartialCandidate, ProgressFn, Removed,
+    SignatureTest, State, Structure, Thresholds, Tier, Verdict,
 };
 use crate::gap::measured_csv::MeasuredRow;
 use crate::motor::effects::{Axis, Effect};
@@ -151,7 +151,7 @@ pub(super) fn select_effects(
     mut state: State,
     library: &[Effect],
     data: &Data,
-    opts: &Options,
+    (opts, th): (&Options, &Thresholds),
     progress: ProgressFn,
 ) -> Selection {
     let mut candidates_out: Vec<Candidate> = Vec::new();
@@ -159,15 +159,18 @@ pub(super) fn select_effects(
     let mut removed = Vec::new();
     let mut refits = Refits::default();
     let mut round = 0;
-    while state.model.effects.len() < opts.max_effects && state.ratio >= opts.consistent_ratio {
+    // The search starts, and goes on, on either signal: R above its noise limit, or structure
+    // above noise along one condition (a small effect along one condition moves R little: an
+    // amplifier 1 % slower at the top frequency left R at 1.5 with χ²/dof 24 along frequency).
+    while state.model.effects.len() < opts.max_effects && !state.within_noise(data, opts).0 {
         round += 1;
         let todo: Vec<Effect> =
             library.iter().copied().filter(|e| !state.model.effects.contains(e)).collect();
         if todo.is_empty() {
             break;
         }
-        let mut cands = test_candidates(&state, &todo, round, data, opts, progress);
-        let Some((best, group)) = best_and_group(&cands, opts) else {
+        let mut cands = test_candidates(&state, &todo, round, data, (opts, th), progress);
+        let Some((best, group)) = best_and_group(&cands, &state, data, (opts, th)) else {
             candidates_out.extend(cands);
             break;
         };
@@ -183,7 +186,7 @@ pub(super) fn select_effects(
         cands[best].accepted = true;
         let (effect, x) = (cands[best].effect, cands[best].fit_x.clone());
         candidates_out.extend(cands);
-        state = accept_effect(&state, effect, x, round, data, opts, &mut removed, &mut refits);
+        state = accept_effect(&state, effect, x, round, data, th, &mut removed, &mut refits);
     }
     Selection { state, candidates: candidates_out, ambiguity, removed, refits }
 }
@@ -196,7 +199,7 @@ fn test_candidates(
     todo: &[Effect],
     round: usize,
     data: &Data,
-    opts: &Options,
+    (opts, th): (&Options, &Thresholds),
     progress: ProgressFn,
 ) -> Vec<Candidate> {
     let all = all_rows(data);
@@ -215,7 +218,7 @@ fn test_candidates(
             let cheap = f.x.clone();
             let k = effect.fit_params().len();
             let pays =
-                |f: &Fit| delta_bic(state.fit.ssr, f.ssr, state.s, k, data.len()) >= opts.min_delta_bic;
+                |f: &Fit| delta_bic(state.fit.ssr, f.ssr, state.s, k, data.len()) >= th.min_delta_bic(k);
             // On a contact base that fit moved the effect the way the closed form does; one
             // anchor at its end point refits it on the contact model's own slopes, and the
             // likelihood ratio is between the contact model's sums of squares.
@@ -400,6 +403,7 @@ fn candidate(
         partial: false,
         structure,
         params: effect_named_params(m, f, effect, state.s),
+        size_interval: super::size_interval(m, f, effect, state.s),
         ssr: f.ssr,
         fit_x: f.x.clone(),
         pred,
@@ -410,23 +414,33 @@ fn candidate(
 /// least the thresholds. Returns the best one's index and its ambiguity group (eligible
 /// candidates within [`Options::ambiguity_bic`] of it, or both consistent with noise), or `None`
 /// when no candidate is eligible.
-fn best_and_group(cands: &[Candidate], opts: &Options) -> Option<(usize, Vec<usize>)> {
-    let eligible: Vec<usize> = (0..cands.len())
-        .filter(|&i| {
-            cands[i].delta_bic >= opts.min_delta_bic && cands[i].cv_improvement >= opts.min_cv_improvement
-        })
-        .collect();
+fn best_and_group(
+    cands: &[Candidate],
+    state: &State,
+    data: &Data,
+    (opts, th): (&Options, &Thresholds),
+) -> Option<(usize, Vec<usize>)> {
+    let eligible: Vec<usize> = (0..cands.len()).filter(|&i| pays_its_way(&cands[i], th)).collect();
+    // R of a refit with one more effect, against its own noise limit.
+    let consistent = |c: &Candidate| {
+        let p = state.model.n_params() + c.effect.fit_params().len();
+        c.consistency < super::consistency_limit(data.len(), p, state.noise_dof, opts.signature_alpha)
+    };
     let &best = eligible.first()?;
     let group: Vec<usize> = eligible
         .iter()
         .copied()
         .filter(|&i| {
             cands[best].delta_bic - cands[i].delta_bic < opts.ambiguity_bic
-                || (cands[best].consistency < opts.consistent_ratio
-                    && cands[i].consistency < opts.consistent_ratio)
+                || (consistent(&cands[best]) && consistent(&cands[i]))
         })
         .collect();
     Some((best, group))
+}
+
+/// Whether a candidate pays its way: ΔBIC and cross-validated gain at least their thresholds.
+fn pays_its_way(c: &Candidate, th: &Thresholds) -> bool {
+    c.delta_bic >= th.min_delta_bic(c.effect.fit_params().len()) && c.cv_improvement >= th.cv_improvement
 }
 
 /// Adds the accepted `effect` to the model, refits from its candidate fit `x`, re-tests the
@@ -439,7 +453,7 @@ fn accept_effect(
     x: Vec<f64>,
     round: usize,
     data: &Data,
-    opts: &Options,
+    th: &Thresholds,
     removed: &mut Vec<Removed>,
     refits: &mut Refits,
 ) -> State {
@@ -447,7 +461,7 @@ fn accept_effect(
     model.effects.push(effect);
     let (model, fit) =
         fit_anchored(&model, data, &all_rows(data), &[x], REFIT_ITERATIONS, MAX_ANCHORS, false);
-    let (model, fit, dropped) = retest_earlier(model, fit, effect, (state.s, round), data, opts, refits);
+    let (model, fit, dropped) = retest_earlier(model, fit, effect, (state.s, round), data, th, refits);
     removed.extend(dropped);
     let (s, m) = refresh_noise(data, &fit, (state.s, state.noise_dof));
     let r = ratio(&fit, data.len(), model.n_params(), s);
@@ -462,7 +476,7 @@ fn retest_earlier(
     newest: Effect,
     (s, round): (f64, usize),
     data: &Data,
-    opts: &Options,
+    th: &Thresholds,
     refits: &mut Refits,
 ) -> (Model, Fit, Vec<Removed>) {
     let mut removed = Vec::new();
@@ -476,7 +490,7 @@ fn retest_earlier(
             }
             let (reduced, f) = refits.without(&model, &fit, &[e], data);
             let kept = delta_bic(f.ssr, fit.ssr, s, e.fit_params().len(), n);
-            if kept < opts.min_delta_bic {
+            if kept < th.min_delta_bic(e.fit_params().len()) {
                 removed.push(Removed { name: e.to_string(), round, delta_bic_kept: kept });
                 model = reduced;
                 fit = f;
@@ -698,7 +712,7 @@ pub(super) struct Naming {
 /// condition, and the time since `t0`.
 pub(super) fn build_report(
     data: &Data,
-    opts: &Options,
+    (opts, mut thresholds): (&Options, Thresholds),
     before: Before,
     selection: Selection,
     naming: Naming,
@@ -712,6 +726,38 @@ pub(super) fn build_report(
     let (fitted, final_effects) = final_effects(&state);
     let mean_mm_s = data.mean_speed() * 1e3;
     let residual_structure = residual_structure(before.structure, structure(data, &state.fit.resid, state.s));
+    let (within_noise, limit_after, unexplained_structure) = state.within_noise(data, opts);
+    thresholds.consistency_ratio_after = limit_after;
+    let nothing_named = state.model.effects.is_empty();
+    let nothing_missing = nothing_named && naming.partial_candidates.is_empty() && within_noise;
+    let outcome = if nothing_missing {
+        Outcome::NothingMissing
+    } else if !nothing_named {
+        Outcome::Named
+    } else if !unexplained_structure.is_empty() {
+        Outcome::StructureUnexplained
+    } else {
+        Outcome::ExcessUnexplained
+    };
+    // What the last round tested and did not add, where its likelihood ratio says it explains
+    // part of what is left: a candidate the data cannot yet size or tell from the base model's
+    // own error, reported with the interval they allow.
+    let last_round = selection.candidates.iter().map(|c| c.round).max().unwrap_or(0);
+    let unsized_candidates: Vec<Candidate> = if within_noise {
+        Vec::new()
+    } else {
+        selection
+            .candidates
+            .iter()
+            .filter(|c| {
+                c.round == last_round
+                    && !c.accepted
+                    && !c.partial
+                    && c.delta_bic >= thresholds.min_delta_bic(c.effect.fit_params().len())
+            })
+            .cloned()
+            .collect()
+    };
     GapReport {
         rows: data.len(),
         gap_before: before.gap,
@@ -724,9 +770,11 @@ pub(super) fn build_report(
             .map(|v| v.effect.clone())
             .collect(),
         verdicts: naming.verdicts,
-        nothing_missing: state.model.effects.is_empty()
-            && naming.partial_candidates.is_empty()
-            && state.ratio < opts.consistent_ratio,
+        nothing_missing,
+        outcome,
+        unexplained_structure,
+        unsized_candidates,
+        thresholds,
         partial_candidates: naming.partial_candidates,
         signature_tests: naming.signature_tests,
         signature_alpha: opts.signature_alpha,
