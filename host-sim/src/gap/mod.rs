@@ -48,9 +48,8 @@ pub struct Options {
     /// along one of its signature conditions that pure noise would exceed with probability below
     /// `signature_alpha` is a partial candidate, not a named effect.
     pub signature_alpha: f64,
-    /// Standard errors of a held-out RMS by which a candidate's cross-validated RMS must improve
-    /// ([`Thresholds::cv_improvement`]).
-    pub cv_standard_errors: f64,
+    /// Minimum relative improvement of the cross-validated RMS ([`Thresholds::cv_improvement`]).
+    pub min_cv_improvement: f64,
     /// ΔBIC margin within which candidates form an ambiguity group (candidates whose refits both
     /// leave residuals consistent with noise are grouped whatever their ΔBIC).
     pub ambiguity_bic: f64,
@@ -69,7 +68,7 @@ impl Default for Options {
             // conditions and R of the verdict, noise alone denies "nothing missing" with
             // probability < 0.6 %.
             signature_alpha: 1e-3,
-            cv_standard_errors: 2.0,
+            min_cv_improvement: 0.15,
             ambiguity_bic: 10.0,
             library: EFFECT_NAMES.to_vec(),
         }
@@ -89,10 +88,14 @@ impl Default for Options {
 ///   the χ²(k) quantile at α/L (Bonferroni: noise alone accepts one of the L with probability
 ///   ≤ α); as ΔBIC that is `quantile(α/L, k) − k·ln n` (192 rows, L = 8, k = 1: 9.5; k = 2: 7.5;
 ///   36 rows: 11.1 and 10.8).
-/// - **cross-validation gain** = 1 − RMS_cv(with)/RMS_cv(without) over the n held-out rows. An
-///   RMS of n independent residuals has a relative standard error of 1/√(2n), a difference of
-///   two of them 1/√n; the gain must exceed [`Options::cv_standard_errors`] (2) of those:
-///   2/√n (192 rows: 0.144, 300: 0.115, 54: 0.27).
+/// - **cross-validation gain** = 1 − RMS_cv(with)/RMS_cv(without) over the n held-out rows:
+///   [`Options::min_cv_improvement`], 15 %, *not* derived. Two standard errors of a difference
+///   of two independent held-out RMS (2/√n: 0.144 on 192 rows, 0.115 on 300) was tried: on a
+///   board's 36 rows it is 0.33, and the guide's friction of a `mu_rail` board run passed it by
+///   0.346 (the following rounds' Stribeck rise by 0.63); the two RMS are of the same held-out
+///   rows, so their difference varies far less than that bound says, and a paired bound was not
+///   worked out. On 300 rows 0.115 also let the carriage's inertia into round 2 of the LC-filter
+///   set as a partial candidate.
 #[derive(Debug, Clone, Serialize)]
 pub struct Thresholds {
     pub rows: usize,
@@ -105,6 +108,10 @@ pub struct Thresholds {
     /// `consistency_limit_after`).
     pub consistency_ratio: f64,
     pub consistency_ratio_after: f64,
+    /// R at or above which effect selection goes on: the χ²(n − p)/(n − p) quantile, R's limit
+    /// with the noise known (m → ∞). Lower than `consistency_ratio`: the search stops only where
+    /// even an exact noise estimate would call the residuals noise.
+    pub search_ratio: f64,
     /// Minimum ΔBIC of a candidate of one and of two fitted parameters.
     pub delta_bic: [f64; 2],
     pub cv_improvement: f64,
@@ -122,8 +129,9 @@ impl Thresholds {
             alpha,
             consistency_ratio: consistency_limit(rows, BASE_PARAMS, noise_dof, alpha),
             consistency_ratio_after: f64::NAN,
+            search_ratio: consistency_limit(rows, BASE_PARAMS, 0, alpha),
             delta_bic: [bic(1), bic(2)],
-            cv_improvement: opts.cv_standard_errors / (rows.max(1) as f64).sqrt(),
+            cv_improvement: opts.min_cv_improvement,
         }
     }
 
@@ -440,6 +448,13 @@ impl State {
             (b.chi2_per_dof / b.noise_limit_per_dof).total_cmp(&(a.chi2_per_dof / a.noise_limit_per_dof))
         });
         (self.ratio < limit && above.is_empty(), limit, above)
+    }
+
+    /// Whether effect selection goes on: structure above noise along a condition, or R at least
+    /// its limit with the noise known ([`Thresholds::search_ratio`]).
+    fn search_goes_on(&self, data: &Data, opts: &Options) -> bool {
+        let known = consistency_limit(data.len(), self.model.n_params(), 0, opts.signature_alpha);
+        self.ratio >= known || !self.within_noise(data, opts).2.is_empty()
     }
 }
 
@@ -894,7 +909,8 @@ mod tests {
             "{}",
             t.delta_bic[1]
         );
-        assert!((t.cv_improvement - 2.0 / 192f64.sqrt()).abs() < 1e-12);
+        // With the noise known R's limit is the search's.
+        assert!((t.search_ratio - consistency_limit(192, BASE_PARAMS, 0, 1e-3)).abs() < 1e-12);
         // R's limit is F(n − p, m)'s 1 − α quantile: above the known-noise χ² limit, below the
         // ratio a handful of pseudo-residuals would allow, and falling as m grows.
         let known = consistency_limit(192, BASE_PARAMS, 0, 1e-3);

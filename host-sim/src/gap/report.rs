@@ -366,9 +366,16 @@ pub fn verdict_lines(r: &GapReport) -> Vec<String> {
         ));
     }
     out.push(format!(
-        "thresholds from {} rows and {} noise pseudo-residuals at α = {}: R < {:.2}, ΔBIC ≥ {:.1} (one \
-         parameter) / {:.1} (two), cross-validation gain ≥ {:.3}",
-        t.rows, t.noise_dof, t.alpha, t.consistency_ratio, t.delta_bic[0], t.delta_bic[1], t.cv_improvement
+        "thresholds from {} rows and {} noise pseudo-residuals at α = {}: R < {:.2} (the search goes on \
+         above {:.2}), ΔBIC ≥ {:.1} (one parameter) / {:.1} (two), cross-validation gain ≥ {:.3}",
+        t.rows,
+        t.noise_dof,
+        t.alpha,
+        t.consistency_ratio,
+        t.search_ratio,
+        t.delta_bic[0],
+        t.delta_bic[1],
+        t.cv_improvement
     ));
     out
 }
