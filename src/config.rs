@@ -91,6 +91,10 @@ pub struct ControllerConfig {
     /// on its friction layer) instead of the inertial model; the inertial table serves until the
     /// contact table is built.
     pub contact_table: bool,
+    /// Limit switches: whether the board reads them, and the level (high or low) at which a
+    /// switch is active.
+    pub limit_switches_enabled: bool,
+    pub limit_switch_active_high: bool,
 }
 
 /// What referencing looks for.

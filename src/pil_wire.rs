@@ -134,7 +134,8 @@ pub fn encode_tick(t: &Tick) -> [u8; TICK_BYTES] {
     let flags = u8::from(t.inputs.index)
         | (u8::from(t.inputs.negative_limit) << 1)
         | (u8::from(t.inputs.positive_limit) << 2)
-        | (u8::from(t.inputs.index_raw.is_some()) << 3);
+        | (u8::from(t.inputs.index_raw.is_some()) << 3)
+        | (u8::from(t.inputs.limits_wired) << 4);
     put(&mut b, 0, &[cmd, flags]);
     put(&mut b, 2, &t.inputs.encoder_raw.to_le_bytes());
     put(&mut b, 4, &t.inputs.preload_word.to_le_bytes());
@@ -170,6 +171,7 @@ pub fn decode_tick(b: &[u8; TICK_BYTES]) -> Option<Tick> {
         negative_limit: flags & 2 != 0,
         positive_limit: flags & 4 != 0,
         index_raw: (flags & 8 != 0).then(|| u16::from_le_bytes(get::<2>(b, 6))),
+        limits_wired: flags & 16 != 0,
     };
     Some(Tick { command, inputs })
 }

@@ -126,6 +126,11 @@ pub const FRACTION: Range = Range::Float { lo: 0.0, hi: 1.0, lo_open: true };
 pub const TRAVEL: Range = Range::Int { lo: -MAX_TRAVEL_NM, hi: MAX_TRAVEL_NM };
 /// 0 or 1 (a bool, a two-way choice).
 pub const FLAG: Range = Range::Int { lo: 0, hi: 1 };
+/// Longest time setting (s): the timers count control periods in a u32 (at 10 kHz 4.9 days), and
+/// an hour is far beyond any search or settle this stage makes.
+pub const TIMEOUT_MAX_S: f32 = 3600.0;
+/// A timeout: `0 < x ≤` [`TIMEOUT_MAX_S`].
+pub const TIMEOUT: Range = Range::Float { lo: 0.0, hi: TIMEOUT_MAX_S, lo_open: true };
 /// Any u16.
 pub const WORD: Range = Range::Int { lo: 0, hi: u16::MAX as i64 };
 
@@ -531,7 +536,7 @@ settings! {
     (0x36, "Servo", on_target_window_nm: i64 = 50;
         "mm", 1.0, Range::Int { lo: 0, hi: MAX_TRAVEL_NM }, Stored, "Settling window"),
     (0x3F, "Servo", settle_time_s: f32 = 0.01;
-        "s", 1.0, NON_NEGATIVE, Stored, "Settling time"),
+        "s", 1.0, Range::Float { lo: 0.0, hi: TIMEOUT_MAX_S, lo_open: false }, Stored, "Settling time"),
     // PI's maximum closed-loop acceleration and deceleration: the most 0xB and 0xC accept. The
     // profile also keeps within what the thrust model allows at the measured preload (XTM?).
     (0x4A, "Motion",
@@ -573,7 +578,7 @@ settings! {
     (0x100B, "Servo", fine_window_nm: f32 = 300.0;
         "mm", 1e6, NON_NEGATIVE, Stored, "Fine-mode window"),
     (0x100D, "Supervision", stall_time_s: f32 = 0.05;
-        "s", 1.0, POSITIVE, Stored, "Stall detection time"),
+        "s", 1.0, TIMEOUT, Stored, "Stall detection time"),
     // The 16-bit encoder counter is unwrapped by its change per period, taken as an i16: a
     // larger limit could never trip.
     (0x100E, "Supervision", encoder_jump_counts: i32 = 200;
@@ -605,7 +610,7 @@ settings! {
     (0x1018, "Referencing", reference_drive_v: f32 = 50.0;
         "V", 1.0, POSITIVE, Stored, "Drive amplitude of the reference search"),
     (0x1019, "Referencing", reference_timeout_s: f32 = 200.0;
-        "s", 1.0, POSITIVE, Stored, "Reference search timeout"),
+        "s", 1.0, TIMEOUT, Stored, "Reference search timeout"),
     (0x101A, "Motor", moving_mass_kg: f32 =
         hardware(|hw, _| hw.motor.moving_mass_kg.to_num(), "the motor table's moving mass");
         "kg", 1.0, Range::Float { lo: 1e-3, hi: 1e3, lo_open: false }, Stored since 3,
@@ -656,6 +661,12 @@ settings! {
     // meanwhile. Off by default until the controller is tuned on the sourced motor.
     (0x1024, "Drive", contact_table: bool = false;
         "", 1.0, FLAG, Stored since 8, "Model table from the contact model (1) or the inertial model (0)"),
+    // Limit switches (two inputs, one per end of travel): read only when enabled, a switch
+    // active at this level. Off by default: a board with nothing on the pins reads their pulls.
+    (0x1025, "Supervision", limit_switches_enabled: bool = false;
+        "", 1.0, FLAG, Stored since 9, "Limit switches read (0 ignored, 1 read)"),
+    (0x1026, "Supervision", limit_switch_active_high: bool = false;
+        "", 1.0, FLAG, Stored since 9, "Limit switch active level (0 low, 1 high)"),
     // The identity clients see first (`*IDN?`); 0x1040 and up: the interface's settings.
     (0x1040, "Interface", idn_c867_compatible: bool = false;
         "", 1.0, FLAG, Stored since 7,

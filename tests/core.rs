@@ -275,6 +275,7 @@ fn pil_frames_round_trip_and_reject_unknown_commands() {
             index_raw: if command == Command::None { None } else { Some(0x1234) },
             negative_limit: false,
             positive_limit: true,
+            limits_wired: command == Command::Reference,
         };
         let t = Tick { command, inputs };
         assert_eq!(decode_tick(&encode_tick(&t)), Some(t));

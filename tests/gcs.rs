@@ -688,11 +688,21 @@ fn open_loop_stepping() {
         (b"ERR?\n", b"0\n"),
         (b"\x05", b"1\n"),
     ]);
-    rig.steps(200, Inputs::default());
+    // The slider follows the drive toward −x, a count every other period (a slider that does not
+    // is stopped by the progress watch: tests/safety.rs).
+    let follow = |rig: &mut Rig, n: usize| {
+        for k in 0..n {
+            if k % 2 == 0 {
+                rig.encoder = rig.encoder.wrapping_sub(1);
+            }
+            rig.steps(1, Inputs::default());
+        }
+    };
+    follow(&mut rig, 200);
     rig.transcript(&[(b"XDA?\n", b"1=50.000\n"), (b"XDF?\n", b"1=1000.0\n")]);
-    rig.steps(800, Inputs::default());
+    follow(&mut rig, 800);
     assert_eq!(rig.ctl.state(), State::OpenLoop);
-    rig.steps(2, Inputs::default());
+    follow(&mut rig, 2);
     assert_eq!(rig.ctl.state(), State::Idle);
     rig.transcript(&[(b"\x05", b"0\n")]);
     // STP ends stepping at once.
@@ -929,7 +939,7 @@ fn every_accepted_setting_can_be_stored() {
         (b"VEL 1 100000\n", b""),
         (b"ACC 1 1e9\n", b""),
         (b"DEC 1 1e-6\n", b""),
-        (b"SPA 1 0x1016 1 1 0x1017 -1000 1 0x1018 0.001 1 0x1019 1e6\n", b""),
+        (b"SPA 1 0x1016 1 1 0x1017 -1000 1 0x1018 0.001 1 0x1019 3600\n", b""),
         (b"ERR?\n", b"0\n"),
         (b"WPA\n", b""),
         (b"ERR?\n", b"0\n"),

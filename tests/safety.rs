@@ -366,6 +366,7 @@ fn sample_record() -> FaultRecord {
         kind: FaultKind::HardFault,
         boots_seen: 0,
         tick: 123_456,
+        later_faults: 0,
         detail: [
             0x0800_1234,
             0xFFFF_FFF9,
@@ -399,6 +400,27 @@ fn fault_record_round_trips() {
         let r = FaultRecord { kind, boots_seen: 3, ..sample_record() };
         assert_eq!(fault_record::decode(&fault_record::encode(&r)), Some(r));
     }
+}
+
+/// An overrun while a controller fault (or any earlier fault of this boot) is recorded: the
+/// first stays and the later one is counted; before, the last writer won and the first cause
+/// was lost. A record a boot has already seen gives way.
+#[test]
+fn the_fault_record_keeps_the_first_fault_of_a_boot_and_counts_the_rest() {
+    let first =
+        FaultRecord { kind: FaultKind::Controller, detail: [8, 0, 0, 0, 0, 0, 0, 0], ..sample_record() };
+    let overrun = FaultRecord { kind: FaultKind::Overrun, tick: 200_000, ..sample_record() };
+    let once = fault_record::merge(fault_record::decode(&fault_record::encode(&first)), overrun);
+    assert_eq!(once, FaultRecord { later_faults: 1, ..first });
+    let twice = fault_record::merge(fault_record::decode(&fault_record::encode(&once)), overrun);
+    assert_eq!((twice.kind, twice.tick, twice.later_faults), (FaultKind::Controller, 123_456, 2));
+    // Nothing (random RAM) before: the new one.
+    assert_eq!(fault_record::merge(None, overrun), overrun);
+    // A record from before the reset (a boot has seen it): the new one replaces it.
+    let old = FaultRecord { boots_seen: 1, later_faults: 5, ..first };
+    assert_eq!(fault_record::merge(Some(old), overrun), overrun);
+    let w = fault_record::encode(&twice);
+    assert_eq!(w[4], 2, "the count is the fifth word");
 }
 
 #[test]
@@ -797,4 +819,119 @@ fn the_soft_start_blend_is_the_closed_form_exactly() {
         let expected = i64::from(rest) + d * i64::from(k) / i64::from(n);
         assert_eq!(i64::from(one[0][0]), expected, "rest {rest} word {word} k {k} n {n}");
     }
+}
+
+// ---------------------------------------------------------------- a board that cannot hurt its motor
+
+/// Steps `ctl` with the encoder at `count(k)` in period `k` until it faults or `limit` periods
+/// passed; the period of the fault (1 = the first) and its code.
+fn periods_to_fault(
+    ctl: &mut Controller,
+    limit: u32,
+    count: impl Fn(u32) -> u16,
+) -> Option<(u32, FaultCode)> {
+    (1..=limit).find_map(|k| {
+        let out =
+            ctl.step(&Inputs { preload_word: PRELOAD_WORD, encoder_raw: count(k), ..Default::default() });
+        ctl.background();
+        ctl.fault().map(|code| {
+            assert!(!out.amp_enable, "the fault's own period disables the amplifier");
+            (k, code)
+        })
+    })
+}
+
+/// Open-loop stepping (`XOS`) against an end stop: the encoder never moves. Before, the run went
+/// on for all its cycles (here 10 s at 80 V) whatever the encoder said; now the progress watch
+/// stops it after one window of the model's foot speed at that drive (clamped to 20–50 ms: the
+/// 4 counts it asks are 200 nm, 1/50 of what the foot covers in the window at the least).
+#[test]
+fn open_loop_stepping_into_a_stop_faults_no_progress_within_a_window() {
+    let mut ctl = idle_controller();
+    ctl.open_loop_step(15_000, 80.0, 1500.0).unwrap();
+    let window = ctl.progress_window_ticks(80.0);
+    assert!((200..=500).contains(&window), "window {window} periods");
+    let (n, code) = periods_to_fault(&mut ctl, 100_000, |_| 0).expect("a fault");
+    assert_eq!(code, FaultCode::NoProgress);
+    assert_eq!(n, window);
+    // A slider gaining a count every 10 periods (far slower than the model's) runs on.
+    let mut ctl = idle_controller();
+    ctl.open_loop_step(1_500, 80.0, 1500.0).unwrap();
+    assert_eq!(periods_to_fault(&mut ctl, 10_001, |k| (k / 10) as u16), None);
+    assert_eq!(ctl.state(), State::Idle, "the run ended after its cycles");
+}
+
+/// A lost quadrature channel whose partner still toggles makes the count flicker between two
+/// values: before, any change reset the watches; now the flicker is no progress.
+#[test]
+fn a_flickering_encoder_is_no_progress() {
+    let mut ctl = idle_controller();
+    ctl.open_loop_step(-15_000, 80.0, 1500.0).unwrap();
+    let window = ctl.progress_window_ticks(80.0);
+    let (n, code) = periods_to_fault(&mut ctl, 100_000, |k| (k / 3 % 2) as u16).expect("a fault");
+    assert_eq!((n, code), (window, FaultCode::NoProgress));
+}
+
+/// Referencing (`FRF`) with the index on the far side and no limit switches: the search toward
+/// −x meets the stop. Before: 50 V against the stop until the 200 s timeout; now the progress
+/// watch's window at the referencing drive.
+#[test]
+fn referencing_into_a_stop_faults_no_progress() {
+    let mut ctl = idle_controller();
+    ctl.start_referencing().unwrap();
+    let cfg = *ctl.config();
+    let window = ctl.progress_window_ticks(cfg.reference_drive_v);
+    // Moving toward −x for 1000 periods (a count every 5), then against the stop.
+    let (n, code) =
+        periods_to_fault(&mut ctl, 100_000, |k| 0u16.wrapping_sub(k.min(1000) as u16 / 5)).expect("a fault");
+    assert_eq!(code, FaultCode::NoProgress);
+    // The last gain ended a window at or before period 1000: the fault one window later at most.
+    assert!(n > 1000 && n <= 1000 + window, "fault at {n}, window {window}");
+    assert!(!ctl.referenced());
+}
+
+/// The timeouts have upper bounds (an hour), and the timers count periods: the reference
+/// search times out after exactly its setting's periods.
+#[test]
+fn timeouts_are_bounded_and_counted_in_periods() {
+    use piezo_drive::controller::validate_settings;
+    let d = defaults::controller_config();
+    for (s, ok) in [(3600.0, true), (3600.5, false), (1e6, false)] {
+        assert_eq!(validate_settings(&ControllerConfig { reference_timeout_s: s, ..d }).is_ok(), ok, "{s}");
+        assert_eq!(validate_settings(&ControllerConfig { stall_time_s: s, ..d }).is_ok(), ok, "{s}");
+        assert_eq!(validate_settings(&ControllerConfig { settle_time_s: s, ..d }).is_ok(), ok, "{s}");
+    }
+    assert_eq!(d.ticks_for_s(3600.0), 36_000_000);
+    assert_eq!(d.ticks_for_s(0.0123), 123);
+    // A search at 20 V (below the progress watch's share) that finds nothing: it fails after
+    // 0.0123 s = 123 periods, the 124th period ends it.
+    let mut ctl =
+        Controller::new(ControllerConfig { reference_timeout_s: 0.0123, reference_drive_v: 20.0, ..d })
+            .unwrap();
+    for _ in 0..10 {
+        ctl.step(&Inputs { preload_word: PRELOAD_WORD, ..Default::default() });
+    }
+    ctl.start_referencing().unwrap();
+    let n = (1..=1000u32)
+        .find(|_| {
+            ctl.step(&Inputs { preload_word: PRELOAD_WORD, ..Default::default() });
+            !ctl.referencing()
+        })
+        .unwrap();
+    assert_eq!(n, 124);
+    assert_eq!(ctl.reference_failure_count(), 1);
+}
+
+/// An overrun during another fault: the controller keeps the first fault's code and counts the
+/// overrun (before, it was dropped without a trace).
+#[test]
+fn an_overrun_during_a_fault_is_counted() {
+    let mut ctl = idle_controller();
+    ctl.step(&Inputs { preload_word: PRELOAD_WORD, encoder_raw: 30_000, ..Default::default() });
+    assert_eq!(ctl.fault(), Some(FaultCode::EncoderJump));
+    assert_eq!(ctl.overrun_count(), 0);
+    ctl.trip_external(FaultCode::Overrun);
+    ctl.trip_external(FaultCode::Overrun);
+    assert_eq!(ctl.fault(), Some(FaultCode::EncoderJump));
+    assert_eq!(ctl.overrun_count(), 2);
 }

@@ -206,6 +206,8 @@ fn changed() -> piezo_drive::controller::ControllerConfig {
     c.encoder_loss_counts = 120;
     c.idn_c867_compatible = true;
     c.contact_table = true;
+    c.limit_switches_enabled = true;
+    c.limit_switch_active_high = true;
     c
 }
 
@@ -304,12 +306,12 @@ fn record(version: u16, values: &[V]) -> Vec<u8> {
     rec
 }
 
-/// The version-8 layout, written out by hand: every stored setting in table order, in its
+/// The version-9 layout, written out by hand: every stored setting in table order, in its
 /// type's width. A change here is a new format version. Version 4 was the same without the
 /// lowest drive frequency at the end, version 3 also without the calibrated motor, version 2
 /// also without the moving mass; such records still load, what they lack from the defaults.
 #[test]
-fn version_8_record_byte_for_byte_and_versions_7_to_2_still_load() {
+fn version_9_record_byte_for_byte_and_versions_8_to_2_still_load() {
     use V::*;
     let v2_fields = [
         F(55.5),       // 0x1 kp
@@ -367,17 +369,32 @@ fn version_8_record_byte_for_byte_and_versions_7_to_2_still_load() {
     let mut v8_fields = v6_fields.clone();
     v8_fields.push(B(1)); // 0x1024 contact-model table
     v8_fields.push(B(1)); // 0x1040 C-867 compatible identity
-    let expected = record(8, &v8_fields);
-    assert_eq!(VERSION, 8);
-    assert_eq!(PAYLOAD_LEN, 174);
-    assert_eq!(RECORD_LEN, 186);
+
+    // Format 9 adds the limit switch rows, in table order after the contact-model row.
+    let mut v9_fields = v6_fields.clone();
+    v9_fields.extend([
+        B(1), // 0x1024 contact-model table
+        B(1), // 0x1025 limit switches read
+        B(1), // 0x1026 limit switches active high
+        B(1), // 0x1040 C-867 compatible identity
+    ]);
+    let expected = record(9, &v9_fields);
+    assert_eq!(VERSION, 9);
+    assert_eq!(PAYLOAD_LEN, 176);
+    assert_eq!(RECORD_LEN, 188);
     assert_eq!(storage::encode(&changed()).to_vec(), expected);
     assert_eq!(storage::decode(&expected, &controller_config()), Ok(changed()));
-    // Version 7: everything but the contact-model table setting, from the defaults.
+    // Version 8: everything but the limit switch settings, from the defaults.
     let d = controller_config();
+    let v8 = record(8, &v8_fields);
+    assert_eq!(v8.len(), 8 + 174 + 4);
+    let mut want = changed();
+    (want.limit_switches_enabled, want.limit_switch_active_high) =
+        (d.limit_switches_enabled, d.limit_switch_active_high);
+    assert_eq!(storage::decode(&v8, &d), Ok(want));
+    // Version 7: also the contact-model table setting from the defaults.
     let v7 = record(7, &v7_fields);
     assert_eq!(v7.len(), 8 + 173 + 4);
-    let mut want = changed();
     want.contact_table = d.contact_table;
     assert_eq!(storage::decode(&v7, &d), Ok(want));
     // Version 6: also the identity setting from the defaults.
@@ -468,6 +485,8 @@ fn version_1_record_still_loads() {
     expected.encoder_loss_counts = d.encoder_loss_counts;
     expected.idn_c867_compatible = d.idn_c867_compatible;
     expected.contact_table = d.contact_table;
+    (expected.limit_switches_enabled, expected.limit_switch_active_high) =
+        (d.limit_switches_enabled, d.limit_switch_active_high);
     assert_eq!(storage::decode(&v1, &d), Ok(expected));
     // As read from a flash page (erased bytes after it).
     let mut page = vec![0xFFu8; 2048];
@@ -547,6 +566,8 @@ fn every_setting_is_stored_unless_read_only_and_every_default_comes_from_somewhe
         drive_freq_min_hz: f,
         idn_c867_compatible: true,
         contact_table: true,
+        limit_switches_enabled: true,
+        limit_switch_active_high: true,
     };
     let a = with_defaults(&REFERENCE_BOARD, ControllerConfig::default());
     let b = with_defaults(&REFERENCE_BOARD, odd);

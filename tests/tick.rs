@@ -4,10 +4,10 @@
 //! the same tick, parking ramps the drive down to rest before the enable drops (a fault cuts at
 //! once), a silent preload ADC becomes an invalid reading.
 
-use piezo_drive::controller::{Controller, FaultCode};
+use piezo_drive::controller::{Controller, ControllerConfig, FaultCode, LimitSwitches, State};
 use piezo_drive::defaults::controller_config;
 use piezo_drive::safety::soft_start::SoftStart;
-use piezo_drive::safety::tick::{Samples, Tick, TickBoard, PRELOAD_STALE_TICKS};
+use piezo_drive::safety::tick::{Samples, Tick, TickBoard, LIMIT_RELEASE_TICKS, PRELOAD_STALE_TICKS};
 use piezo_drive::safety::timing::{DeadlineMonitor, LeakyBucket, OverrunSupervisor, TickTiming, Verdict};
 
 /// Counts of the timebase per period and the refill's deadline after the due time (the board's
@@ -43,6 +43,10 @@ struct LogBoard {
     preload_seq: u16,
     /// The ADC delivers a new sample each tick (else its sequence number stands still).
     adc_alive: bool,
+    /// The limit switch pins' levels (None: not wired).
+    limit_pins: Option<[bool; 2]>,
+    /// The encoder's count.
+    encoder: u16,
 }
 
 impl LogBoard {
@@ -55,6 +59,8 @@ impl LogBoard {
             park: false,
             preload_seq: 0,
             adc_alive: true,
+            limit_pins: None,
+            encoder: 0,
         }
     }
 
@@ -91,7 +97,7 @@ impl TickBoard for LogBoard {
     }
     fn encoder_raw(&mut self) -> u16 {
         self.log.push(Call::Encoder);
-        0
+        self.encoder
     }
     fn preload_sample(&mut self) -> (u16, u16) {
         self.log.push(Call::Preload);
@@ -105,6 +111,9 @@ impl TickBoard for LogBoard {
     }
     fn index_listening(&mut self, on: bool) {
         self.log.push(Call::Index(on));
+    }
+    fn limit_pins(&mut self) -> Option<[bool; 2]> {
+        self.limit_pins
     }
     fn after_step(&mut self, _controller: Option<&Controller>) {
         self.log.push(Call::AfterStep);
@@ -328,4 +337,91 @@ fn the_index_interrupt_listens_only_while_referencing() {
     c.stop();
     run(&mut t, &mut b, &mut c, 31, 100);
     assert!(run(&mut t, &mut b, &mut c, 32, 100).contains(&Call::Index(false)));
+}
+
+/// A controller with the limit switches read, active low (normally closed switches to ground
+/// with pull-ups: a broken wire reads active).
+fn controller_with_switches() -> Controller {
+    let cfg = ControllerConfig {
+        limit_switches_enabled: true,
+        limit_switch_active_high: false,
+        ..controller_config()
+    };
+    Controller::new(cfg).expect("settings in range")
+}
+
+/// A limit switch read by the board stops open-loop stepping toward it in the tick that reads
+/// it (before, the tick handed the controller no switch at all); the switch counts as active
+/// from its first reading and is released only after the debounce's quiet readings; with the
+/// setting off, or no pins, the switches are ignored. The controller says what it saw.
+#[test]
+fn a_limit_switch_read_by_the_tick_stops_the_drive_in_that_tick() {
+    let (mut t, mut b, mut c) = (tick(), LogBoard::new(), controller_with_switches());
+    b.limit_pins = Some([true, true]); // pulled up: inactive
+    for k in 0..20 {
+        run(&mut t, &mut b, &mut c, k, 0);
+    }
+    assert_eq!(
+        c.limit_switches(),
+        LimitSwitches { wired: true, enabled: true, negative: false, positive: false }
+    );
+    // Stepping toward +x, the slider moving (a count a tick).
+    c.open_loop_step(10_000, 80.0, 1500.0).expect("servo off, preload fine");
+    for k in 20..40 {
+        b.encoder = b.encoder.wrapping_add(1);
+        run(&mut t, &mut b, &mut c, k, 0);
+        assert_eq!(c.state(), State::OpenLoop);
+    }
+    // The positive switch closes: this tick's step ends the run.
+    b.limit_pins = Some([true, false]);
+    run(&mut t, &mut b, &mut c, 40, 0);
+    assert_ne!(c.state(), State::OpenLoop, "the run went on past the switch");
+    assert_eq!(c.limit_stop_count(), 1);
+    assert!(c.limit_switches().positive);
+    // Bouncing: open for fewer than the release readings, then closed again: never released.
+    for k in 41..(41 + u32::from(LIMIT_RELEASE_TICKS) - 1) {
+        b.limit_pins = Some([true, true]);
+        run(&mut t, &mut b, &mut c, k, 0);
+        assert!(c.limit_switches().positive, "released after {} quiet readings", k - 40);
+    }
+    let k = 41 + u32::from(LIMIT_RELEASE_TICKS) - 1;
+    run(&mut t, &mut b, &mut c, k, 0);
+    assert!(!c.limit_switches().positive, "released after {} quiet readings", LIMIT_RELEASE_TICKS);
+    // The setting off: the same pin level is no switch.
+    let mut cfg = *c.config();
+    cfg.limit_switches_enabled = false;
+    c.set_config(cfg).expect("settings in range");
+    b.limit_pins = Some([false, false]);
+    run(&mut t, &mut b, &mut c, k + 1, 0);
+    assert_eq!(
+        c.limit_switches(),
+        LimitSwitches { wired: true, enabled: false, negative: false, positive: false }
+    );
+    // Not wired: nothing either.
+    b.limit_pins = None;
+    run(&mut t, &mut b, &mut c, k + 2, 0);
+    assert!(!c.limit_switches().wired);
+}
+
+/// An overrun while the controller already has a fault (here an encoder jump): reported to the
+/// board's record and counted by the controller, which keeps the first fault; a second overrun
+/// during the same latch is reported again (before: neither counted, nor a second one seen).
+#[test]
+fn overruns_during_a_fault_are_reported_each_time() {
+    let (mut t, mut b, mut c) = (tick(), LogBoard::new(), controller());
+    run(&mut t, &mut b, &mut c, 0, 100);
+    b.encoder = 30_000;
+    run(&mut t, &mut b, &mut c, 1, 100);
+    assert_eq!(c.fault(), Some(FaultCode::EncoderJump));
+    b.refill_after = DEADLINE + 1;
+    let mut reported = 0;
+    for k in 2..10 {
+        if run(&mut t, &mut b, &mut c, k, 0).contains(&Call::RecordOverrun) {
+            reported += 1;
+        }
+    }
+    // +10 a late tick, trips at 40 and starts afresh: ticks 5 and 9.
+    assert_eq!(reported, 2);
+    assert_eq!(c.overrun_count(), 2);
+    assert_eq!(c.fault(), Some(FaultCode::EncoderJump), "the first fault stays");
 }

@@ -37,7 +37,7 @@ impl Controller {
         // On-target bookkeeping.
         let within = self.state() == State::Holding
             && (self.motion.profile().target_nm() - pos).abs() <= self.cfg.on_target_window_nm;
-        self.motion.count_on_target(within, self.dt_s);
+        self.motion.count_on_target(within);
 
         match self.status.mode {
             Mode::Coarse => {

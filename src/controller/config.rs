@@ -51,6 +51,19 @@ impl ControllerConfig {
         }
     }
 
+    /// Control periods in `seconds` (rounded up; 0 for 0 or less): what a time setting counts
+    /// to. The settings table bounds every time setting, so the count fits a u32 with room.
+    pub fn ticks_for_s(&self, seconds: f32) -> u32 {
+        let x = seconds * self.loop_hz as f32;
+        // `as` saturates (and takes NaN to 0); one more where it truncated.
+        let t = x as u32;
+        if (t as f32) < x {
+            t.saturating_add(1)
+        } else {
+            t
+        }
+    }
+
     /// The load observer's settings.
     pub(super) fn load_observer(&self) -> LoadObserverConfig {
         LoadObserverConfig {
@@ -73,7 +86,7 @@ impl ControllerConfig {
     pub(super) fn supervisor(&self) -> SupervisorConfig {
         SupervisorConfig {
             following_error_limit_nm: self.following_error_limit_nm,
-            stall_time_s: self.stall_time_s,
+            stall_ticks: self.ticks_for_s(self.stall_time_s),
             encoder_jump_counts: self.encoder_jump_counts,
             max_drive_v: self.max_drive_v,
             nm_per_count: self.encoder_nm_per_count as f32,

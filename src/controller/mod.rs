@@ -68,11 +68,14 @@ pub enum FaultCode {
     /// Fine mode commanded corrections the encoder never saw: the encoder signal is lost (or
     /// the foot slips without moving the slider).
     EncoderLoss = 7,
+    /// Referencing or open-loop stepping drove without the encoder showing progress along the
+    /// drive for a window (an end stop, a stalled slider or a lost encoder).
+    NoProgress = 8,
 }
 
 impl FaultCode {
     /// Every fault, in code order: wire formats decode from it, tests walk it.
-    pub const ALL: [FaultCode; 7] = [
+    pub const ALL: [FaultCode; 8] = [
         FaultCode::FollowingError,
         FaultCode::Stall,
         FaultCode::PreloadOutOfWindow,
@@ -80,6 +83,7 @@ impl FaultCode {
         FaultCode::EncoderJump,
         FaultCode::Overrun,
         FaultCode::EncoderLoss,
+        FaultCode::NoProgress,
     ];
 
     pub fn text(self) -> &'static str {
@@ -93,6 +97,7 @@ impl FaultCode {
             FaultCode::EncoderLoss => {
                 "encoder loss: the drive moved the slider and the encoder saw none of it"
             }
+            FaultCode::NoProgress => "no progress: the open-loop drive did not move the slider (end stop?)",
         }
     }
 }
@@ -162,6 +167,22 @@ pub struct Inputs {
     /// Limit switches (active = the slider is at or beyond the end of travel on that side).
     pub negative_limit: bool,
     pub positive_limit: bool,
+    /// The board reads limit switches (pins wired); the two above are then its debounced
+    /// readings, false while the switches are disabled ([`ControllerConfig::limit_switches_enabled`]).
+    pub limits_wired: bool,
+}
+
+/// The limit switches as the controller last saw them ([`Controller::limit_switches`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct LimitSwitches {
+    /// The board has the switches wired (it reads their pins).
+    pub wired: bool,
+    /// The setting that has them read (`limit_switches_enabled`).
+    pub enabled: bool,
+    /// Their states after the board's debounce (active: at or beyond that end of travel).
+    pub negative: bool,
+    pub positive: bool,
 }
 
 /// What the board applies during the next period.
@@ -255,6 +276,8 @@ pub struct Controller {
     frequency: FrequencyPolicy,
     /// Following error and stall judgement, and the counts the protocol watches ([`supervisor`]).
     supervisor: Supervisor,
+    /// The limit switch inputs of the last period: wired, and their states.
+    limits: (bool, bool, bool),
 }
 
 impl Controller {
@@ -279,6 +302,7 @@ impl Controller {
             model: ModelSlot::new(&cfg, 0),
             mass: MassEstimator::new(cfg.moving_mass_kg),
             supervisor: Supervisor::new(cfg.supervisor()),
+            limits: (false, false, false),
             cfg,
         })
     }
@@ -376,6 +400,20 @@ impl Controller {
         self.supervisor.limit_stops()
     }
 
+    /// The limit switches: whether the board has them wired, whether the settings have them read,
+    /// and their debounced states as of the last period (what `LIM?` and the limit bits of the
+    /// status answer from).
+    pub fn limit_switches(&self) -> LimitSwitches {
+        let (wired, negative, positive) = self.limits;
+        LimitSwitches { wired, enabled: self.cfg.limit_switches_enabled, negative, positive }
+    }
+
+    /// Control-loop overruns the board reported (wraps), also those during a fault (which keep
+    /// the first fault's code): a change tells the protocol one happened.
+    pub fn overrun_count(&self) -> u32 {
+        self.supervisor.overruns()
+    }
+
     /// Motion in progress: a closed-loop move, referencing or open-loop stepping.
     pub fn in_motion(&self) -> bool {
         match self.state() {
@@ -387,7 +425,8 @@ impl Controller {
 
     /// As PI's ONT?: holding within the window for the settle time.
     pub fn on_target(&self) -> bool {
-        self.state() == State::Holding && self.motion.on_target_s() >= self.cfg.settle_time_s
+        self.state() == State::Holding
+            && self.motion.on_target_ticks() >= self.cfg.ticks_for_s(self.cfg.settle_time_s)
     }
 
     /// The measured preload (N) if it is read and within the window: the one check, for
@@ -420,6 +459,7 @@ impl Controller {
 
     /// One control period.
     pub fn step(&mut self, inputs: &Inputs) -> Outputs {
+        self.limits = (inputs.limits_wired, inputs.negative_limit, inputs.positive_limit);
         self.motion.tick();
         self.sense(inputs);
         self.supervise();

@@ -12,7 +12,7 @@ pub(super) struct Motion {
     /// The move's braking rate (nm/s², fixed at its command; 0 until a model table gives one).
     decel_nm_s2: f32,
     /// Time holding within the on-target window (s).
-    on_target_s: f32,
+    on_target_ticks: u32,
     /// Control periods since start (wraps): the speed-up limit (a model evaluation) is
     /// refreshed on odd periods only; the profile's acceleration changes little in 100 µs.
     tick: u32,
@@ -26,7 +26,7 @@ impl Motion {
             profile: Profile::at_rest(0),
             accel_ref_nm_s2: 0.0,
             decel_nm_s2: 1.0,
-            on_target_s: 0.0,
+            on_target_ticks: 0,
             tick: 0,
             speedup_nm_s2: 0.0,
         }
@@ -57,21 +57,22 @@ impl Motion {
         self.decel_nm_s2 = decel_nm_s2;
     }
 
-    pub(super) fn on_target_s(&self) -> f32 {
-        self.on_target_s
+    /// Periods on target in a row.
+    pub(super) fn on_target_ticks(&self) -> u32 {
+        self.on_target_ticks
     }
 
     /// The time on target starts again (a new hold or move).
     pub(super) fn restart_on_target(&mut self) {
-        self.on_target_s = 0.0;
+        self.on_target_ticks = 0;
     }
 
     /// On-target bookkeeping: `within` the window this period, or the time starts again.
-    pub(super) fn count_on_target(&mut self, within: bool, dt_s: f32) {
+    pub(super) fn count_on_target(&mut self, within: bool) {
         if within {
-            self.on_target_s += dt_s;
+            self.on_target_ticks = self.on_target_ticks.saturating_add(1);
         } else {
-            self.on_target_s = 0.0;
+            self.on_target_ticks = 0;
         }
     }
 
@@ -160,10 +161,10 @@ mod tests {
     fn time_on_target_adds_up_and_restarts() {
         let mut m = Motion::new();
         for _ in 0..10 {
-            m.count_on_target(true, DT_S);
+            m.count_on_target(true);
         }
-        assert!((m.on_target_s() - 1e-3).abs() < 1e-7);
-        m.count_on_target(false, DT_S);
-        assert_eq!(m.on_target_s(), 0.0);
+        assert_eq!(m.on_target_ticks(), 10);
+        m.count_on_target(false);
+        assert_eq!(m.on_target_ticks(), 0);
     }
 }

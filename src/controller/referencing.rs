@@ -3,19 +3,24 @@
 
 use super::{Activity, Controller, Inputs, ReferenceSignal};
 
-/// A search for the reference mark: direction, time spent, and whether an index search fell
-/// back to the negative limit switch.
+/// A search for the reference mark: direction, control periods spent, and whether an index
+/// search fell back to the negative limit switch.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct ReferenceSearch {
     direction: i8,
-    elapsed_s: f32,
+    elapsed_ticks: u32,
     on_limit: bool,
 }
 
 impl ReferenceSearch {
     /// Toward −x first.
     pub(super) fn start() -> Self {
-        ReferenceSearch { direction: -1, elapsed_s: 0.0, on_limit: false }
+        ReferenceSearch { direction: -1, elapsed_ticks: 0, on_limit: false }
+    }
+
+    /// The drive's direction (±1).
+    pub(super) fn direction(&self) -> i8 {
+        self.direction
     }
 }
 
@@ -53,9 +58,9 @@ impl Controller {
                 search.direction = -1;
             }
         }
-        search.elapsed_s += self.dt_s;
+        search.elapsed_ticks = search.elapsed_ticks.saturating_add(1);
         self.status.activity = Activity::Referencing(search);
-        if search.elapsed_s > self.cfg.reference_timeout_s {
+        if search.elapsed_ticks > self.cfg.ticks_for_s(self.cfg.reference_timeout_s) {
             return self.reference_failed();
         }
         self.drive.generator.set_direction(search.direction);

@@ -1,6 +1,8 @@
-//! The supervisor's judgement of closed-loop motion (following error, stall, an encoder that
-//! stopped counting under a coarse drive) and the counts the protocol watches (faults, limit-switch stops, failed referencing). The controller reads the
-//! sensors and trips the fault it returns (`supervision.rs`).
+//! The supervisor's judgement of motion (following error, stall, an encoder that stopped
+//! counting under a coarse drive, an open-loop drive that makes no progress) and the counts the
+//! protocol watches (faults, limit-switch stops, failed referencing). The controller reads the
+//! sensors and trips the fault it returns (`supervision.rs`). Its timers count control periods
+//! in integers (a sum of f32 periods stops growing after about 2 000 s).
 
 use super::FaultCode;
 
@@ -8,13 +10,34 @@ use super::FaultCode;
 /// threshold the model's crawl is least certain (a 0.3 kg carriage at 5 N stood 550 nm short of
 /// a target at 13 V, where the model has it moving at 0.2 mm/s, until the approach push moved
 /// it; `coarse.rs`).
-const LOSS_MIN_DRIVE_SHARE: f32 = 0.3;
+pub(super) const LOSS_MIN_DRIVE_SHARE: f32 = 0.3;
+
+/// Width of the encoder's hysteresis band ([`Band`]), in counts: a count flickering between two
+/// neighbouring values stays inside it (after the first flick), a slider creeping on moves it a
+/// count at a time and one turning round after a count (measured: two counts there put a 1 kg
+/// carriage creeping against 70 % of its stall force into a false encoder loss).
+const BAND_COUNTS: i64 = 1;
+
+/// What an open-loop drive must gain along its direction in every window of the progress watch
+/// ([`ProgressWatch`]), in counts: twice what a slider rattles against an end stop under the
+/// referencing drive in the simulator (three to four counts, 150–200 nm).
+pub(super) const PROGRESS_COUNTS: i64 = 8;
+/// The window is the time the model's no-load speed, at the drive's amplitude, needs for
+/// [`PROGRESS_COUNTS`] times this (a loaded or heavy carriage, or a drive at another frequency,
+/// runs far below it), within [`PROGRESS_MIN_S`] and [`PROGRESS_MAX_S`].
+pub(super) const PROGRESS_SLACK: f32 = 50.0;
+/// Shortest window (s): a 50 kg carriage at the referencing drive gains the counts from rest in
+/// well under it.
+pub(super) const PROGRESS_MIN_S: f32 = 0.02;
+/// Longest window (s): a drive the model has crawling still stops within this at an end stop.
+pub(super) const PROGRESS_MAX_S: f32 = 0.05;
 
 /// The limits the supervisor judges by.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct SupervisorConfig {
     pub(super) following_error_limit_nm: f32,
-    pub(super) stall_time_s: f32,
+    /// Stall detection time in control periods.
+    pub(super) stall_ticks: u32,
     pub(super) encoder_jump_counts: i32,
     /// Largest drive (V): "near full" and "full" drive are shares of it.
     pub(super) max_drive_v: f32,
@@ -38,8 +61,10 @@ pub(super) struct ClosedLoopPeriod {
     /// The model's no-load speed at full drive (nm/s; 0 before a table).
     pub(super) foot_speed_nm_s: f32,
     pub(super) dt_s: f32,
-    /// The encoder counted this period.
+    /// The encoder's position left its hysteresis band this period ([`Band`]).
     pub(super) counted: bool,
+    /// The count changed this period without the position leaving the band.
+    pub(super) flicked: bool,
     /// The sine's peak-to-peak swing the amplifier gives the drive (V): what the model's thrust
     /// is taken at.
     pub(super) swing_v: f32,
@@ -71,7 +96,15 @@ struct LossWatch {
     /// falls silent, so a moving slider that counts every period costs no model evaluation.
     counted_at: (f32, f32),
     balance_n: Option<f32>,
+    /// Count changes inside the band since it last moved.
+    flicks: u8,
 }
+
+/// Count changes inside the encoder's band ([`Band`]) the loss watch takes as counts after the
+/// band last moved: a slider that has just stopped against a load vibrates across a count a few
+/// times (a 1 kg carriage at 5 N against 70 % of its stall force, before creeping on); a lost
+/// channel whose partner still toggles flickers for ever.
+const FLICKS_COUNTED: u8 = 8;
 
 impl LossWatch {
     /// One period; true when the model's carriage ran `limit_nm` unseen.
@@ -86,10 +119,22 @@ impl LossWatch {
             *self = LossWatch::default();
             return false;
         }
-        if p.counted {
+        let flick_counts = p.flicked && self.flicks < FLICKS_COUNTED;
+        if p.counted || flick_counts {
+            // A count changed inside the band: a slider vibrating across a count while held
+            // near balance (stopping against a load it is about to creep on against), or one
+            // channel lost. The first few count as before; a count that keeps flickering
+            // without ever leaving the band is no progress.
+            let flicks = if p.counted { 0 } else { self.flicks + 1 };
             let along = p.dir * p.speed_nm_s;
             let speed_nm_s = (0.5 * along).max(0.0);
-            *self = LossWatch { speed_nm_s, travel_nm: 0.0, counted_at: (p.swing_v, along), balance_n: None };
+            *self = LossWatch {
+                speed_nm_s,
+                travel_nm: 0.0,
+                counted_at: (p.swing_v, along),
+                balance_n: None,
+                flicks,
+            };
             return false;
         }
         if !driven {
@@ -109,11 +154,104 @@ impl LossWatch {
     }
 }
 
+/// A hysteresis band on the encoder position, [`BAND_COUNTS`] wide: the slider has moved when
+/// the position leaves the band, which then follows it. A lost quadrature channel whose partner
+/// still toggles counts up and down between two neighbouring values: never out of the band, so
+/// the watches below see no progress in it (any count change reset them before).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(super) struct Band {
+    lo_nm: i64,
+    hi_nm: i64,
+    started: bool,
+}
+
+impl Band {
+    /// The position now (nm) and the band's width (nm); returns how far the band moved (nm,
+    /// signed; 0 inside it).
+    pub(super) fn update(&mut self, x_nm: i64, width_nm: i64) -> i64 {
+        if !self.started {
+            self.started = true;
+            self.lo_nm = x_nm.saturating_sub(width_nm / 2);
+            self.hi_nm = self.lo_nm.saturating_add(width_nm);
+            return 0;
+        }
+        if x_nm > self.hi_nm {
+            let d = x_nm.saturating_sub(self.hi_nm);
+            self.hi_nm = x_nm;
+            self.lo_nm = x_nm.saturating_sub(width_nm);
+            d
+        } else if x_nm < self.lo_nm {
+            let d = x_nm.saturating_sub(self.lo_nm);
+            self.lo_nm = x_nm;
+            self.hi_nm = x_nm.saturating_add(width_nm);
+            d
+        } else {
+            0
+        }
+    }
+}
+
+/// The open-loop drive's progress watch (referencing, open-loop stepping, where no reference is
+/// followed): in every window of `window_ticks` the slider must gain [`PROGRESS_COUNTS`] along
+/// the drive, net, from where the window started (a flicker or a slider rattling against a stop
+/// gains nothing, however often its count changes). An end stop, a stalled slider and a lost
+/// encoder all fail it, whatever the limit switches say. The first window after the drive turns
+/// round is [`TURN_WINDOWS`] long: the slider first has to stop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(super) struct ProgressWatch {
+    /// The drive this window judges: direction, and its window (periods; 0 before the first).
+    dir: i8,
+    window_ticks: u32,
+    /// This window: where it started (nm), its length and the periods it has run.
+    anchor_nm: i64,
+    limit_ticks: u32,
+    ticks: u32,
+}
+
+/// The first window after the drive turns round, in windows: a 50 kg carriage at 3 mm/s takes
+/// 0.1 s to stop under 1.5 N.
+pub(super) const TURN_WINDOWS: u32 = 4;
+
+impl ProgressWatch {
+    /// Whether the watch has a window for a drive in `dir`; if not, the controller computes one
+    /// and calls [`Self::start`] (once per run or turn, not every period).
+    pub(super) fn judging(&self, dir: i8) -> bool {
+        self.window_ticks > 0 && self.dir == dir
+    }
+
+    /// A drive in `dir` starts (or turns round) with the slider at `x_nm`.
+    pub(super) fn start(&mut self, dir: i8, window_ticks: u32, x_nm: i64) {
+        let turn = self.window_ticks > 0 && self.dir == -dir;
+        let window_ticks = window_ticks.max(1);
+        let limit_ticks = if turn { window_ticks.saturating_mul(TURN_WINDOWS) } else { window_ticks };
+        *self = ProgressWatch { dir, window_ticks, anchor_nm: x_nm, limit_ticks, ticks: 0 };
+    }
+
+    /// One period under drive with the slider at `x_nm`; `need_nm`: the gain a window needs.
+    /// True when a window ended without it.
+    pub(super) fn update(&mut self, x_nm: i64, need_nm: i64) -> bool {
+        let gained = x_nm.saturating_sub(self.anchor_nm).saturating_mul(i64::from(self.dir));
+        if gained >= need_nm {
+            self.anchor_nm = x_nm;
+            self.ticks = 0;
+            self.limit_ticks = self.window_ticks;
+            return false;
+        }
+        self.ticks = self.ticks.saturating_add(1);
+        self.ticks >= self.limit_ticks
+    }
+
+    /// No drive to judge (closed loop, idle, a run ended).
+    pub(super) fn stop(&mut self) {
+        *self = ProgressWatch::default();
+    }
+}
+
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(super) struct Supervisor {
     cfg: SupervisorConfig,
-    /// Time the slider has not followed a near-full drive (s; sliding back counts five times).
-    stall_s: f32,
+    /// Periods the slider has not followed a near-full drive (sliding back counts five).
+    stall_ticks: u32,
     /// Largest |reference − position| since the last move command (nm).
     max_following_error_nm: f32,
     /// Faults since power-up (wraps).
@@ -124,25 +262,44 @@ pub(super) struct Supervisor {
     limit_stopped: bool,
     /// Referencing searches that ended without finding the mark (wraps).
     reference_failures: u32,
+    /// Control-loop overruns the board reported, during a fault too (wraps).
+    overruns: u32,
     loss_watch: LossWatch,
+    /// The encoder position's hysteresis band; the open-loop drive's progress watch.
+    band: Band,
+    pub(super) progress: ProgressWatch,
 }
 
 impl Supervisor {
     pub(super) fn new(cfg: SupervisorConfig) -> Self {
         Supervisor {
             cfg,
-            stall_s: 0.0,
+            stall_ticks: 0,
             max_following_error_nm: 0.0,
             faults: 0,
             limit_stops: 0,
             limit_stopped: false,
             reference_failures: 0,
+            overruns: 0,
             loss_watch: LossWatch::default(),
+            band: Band::default(),
+            progress: ProgressWatch::default(),
         }
     }
 
     pub(super) fn configure(&mut self, cfg: SupervisorConfig) {
         self.cfg = cfg;
+    }
+
+    /// The position this period (nm): how far the hysteresis band moved (nm, 0 within it).
+    pub(super) fn track(&mut self, position_nm: i64) -> i64 {
+        let width = BAND_COUNTS.saturating_mul(self.cfg.nm_per_count as i64);
+        self.band.update(position_nm, width)
+    }
+
+    /// The gain an open-loop window needs (nm).
+    pub(super) fn progress_need_nm(&self) -> i64 {
+        PROGRESS_COUNTS.saturating_mul(self.cfg.nm_per_count as i64)
     }
 
     /// An encoder step of `delta_counts` in one period is a jump (a lost or noisy signal).
@@ -185,12 +342,12 @@ impl Supervisor {
             // Sliding backwards under full drive is the clearest sign: count it five times faster.
             // (only at full drive: below it the controller may still be finding the load).
             let backwards = p.dir * p.speed_nm_s < -0.1 * p.foot_speed_nm_s && p.drive_v >= 0.95 * max_v;
-            self.stall_s += if backwards { 5.0 * p.dt_s } else { p.dt_s };
-            if self.stall_s >= self.cfg.stall_time_s {
+            self.stall_ticks = self.stall_ticks.saturating_add(if backwards { 5 } else { 1 });
+            if self.stall_ticks >= self.cfg.stall_ticks {
                 return Some(FaultCode::Stall);
             }
         } else {
-            self.stall_s = 0.0;
+            self.stall_ticks = 0;
         }
         None
     }
@@ -216,6 +373,14 @@ impl Supervisor {
 
     pub(super) fn note_fault(&mut self) {
         self.faults = self.faults.wrapping_add(1);
+    }
+
+    pub(super) fn note_overrun(&mut self) {
+        self.overruns = self.overruns.wrapping_add(1);
+    }
+
+    pub(super) fn overruns(&self) -> u32 {
+        self.overruns
     }
 
     pub(super) fn note_reference_failure(&mut self) {
@@ -249,7 +414,7 @@ mod tests {
     fn supervisor() -> Supervisor {
         Supervisor::new(SupervisorConfig {
             following_error_limit_nm: 10_000.0,
-            stall_time_s: 0.01,
+            stall_ticks: 100,
             encoder_jump_counts: 100,
             max_drive_v: 100.0,
             nm_per_count: 50.0,
@@ -268,6 +433,7 @@ mod tests {
             foot_speed_nm_s: 2.0e6,
             dt_s: DT_S,
             counted: true,
+            flicked: false,
             swing_v: drive_v,
             mass_kg: 1.0,
         }
@@ -307,11 +473,11 @@ mod tests {
     #[test]
     fn stall_after_the_stall_time_near_full_drive() {
         // 95 V > 90 % of 100 V, the slider at 0.1 mm/s < 10 % of the foot's 2 mm/s: 0.01 s is
-        // 100 periods of 0.1 ms (float sums: within one period).
+        // 100 periods of 0.1 ms, counted exactly.
         let mut s = supervisor();
         let (n, code) = periods_to_trip(&mut s, &period(95.0, 1.0e5, 0.0), 1000).unwrap();
         assert_eq!(code, FaultCode::Stall);
-        assert!((99..=101).contains(&n), "{n}");
+        assert_eq!(n, 100);
     }
 
     #[test]
@@ -320,7 +486,7 @@ mod tests {
         let mut s = supervisor();
         let (n, code) = periods_to_trip(&mut s, &period(95.0, -3.0e5, 0.0), 1000).unwrap();
         assert_eq!(code, FaultCode::Stall);
-        assert!((19..=21).contains(&n), "{n}");
+        assert_eq!(n, 20);
     }
 
     #[test]
@@ -415,6 +581,19 @@ mod tests {
     }
 
     #[test]
+    fn a_count_flickering_in_the_band_counts_only_eight_times() {
+        // At cruise as above (trips 19–21 periods after the last count), the count flickering
+        // inside the band every period from there: the first eight flicks count, the watch
+        // then trips 19–21 periods after the eighth.
+        let mut s = supervisor();
+        let cruise = |counted, flicked| ClosedLoopPeriod { counted, flicked, ..period(80.0, 2.0e6, 0.0) };
+        assert_eq!(s.update(&cruise(true, false), hundredth_of_the_swing), None);
+        let (n, code) = periods_to_trip(&mut s, &cruise(false, true), 1000).unwrap();
+        assert_eq!(code, FaultCode::EncoderLoss);
+        assert!((8 + 19..=8 + 21).contains(&n), "{n}");
+    }
+
+    #[test]
     fn a_counting_slider_costs_no_model_evaluation() {
         let calls = core::cell::Cell::new(0u32);
         let counting = |swing_v: f32, speed: f32| {
@@ -430,6 +609,54 @@ mod tests {
         s.update(&watched(80.0, false), counting);
         s.update(&watched(80.0, false), counting);
         assert_eq!(calls.get(), 3);
+    }
+
+    #[test]
+    fn the_band_ignores_a_one_count_flicker_and_follows_motion() {
+        // 50 nm counts, 2 counts wide. A count flickering between 10 and 11 (a lost channel, its
+        // partner toggling) never moves the band; a slider stepping a count a period moves it a
+        // count a period once past the edge, either way.
+        let mut b = Band::default();
+        assert_eq!(b.update(500, 100), 0);
+        for k in 0..100 {
+            assert_eq!(b.update(500 + 50 * (k % 2), 100), 0, "{k}");
+        }
+        assert_eq!(b.update(600, 100), 50);
+        assert_eq!(b.update(650, 100), 50);
+        // Turning round: two counts back inside the band, the third moves it.
+        assert_eq!(b.update(600, 100), 0);
+        assert_eq!(b.update(550, 100), 0);
+        assert_eq!(b.update(500, 100), -50);
+    }
+
+    #[test]
+    fn progress_watch_asks_a_net_gain_every_window() {
+        // 400 nm a window of 200 periods.
+        let mut w = ProgressWatch::default();
+        assert!(!w.judging(1));
+        w.start(1, 200, 0);
+        assert!(w.judging(1) && !w.judging(-1));
+        // Gaining 50 nm every 20 periods: 400 nm in 160 periods, never trips; period 9 600 ends
+        // a window (the 480th gain, 60 windows).
+        let mut x = 0;
+        for k in 1..=9_600u32 {
+            if k % 20 == 0 {
+                x += 50;
+            }
+            assert!(!w.update(x, 400), "{k}");
+        }
+        // Rattling from there: 150 nm up and down every period is no net gain; trips at the
+        // 200th period exactly.
+        let n = (1..=1000u32).find(|k| w.update(x - 150 * i64::from(k % 2), 400)).unwrap();
+        assert_eq!(n, 200);
+        // Turning round (now −x, from +x): the first window is four long, later ones one.
+        w.start(-1, 200, x);
+        let n = (1..=10_000u32).find(|_| w.update(x, 400)).unwrap();
+        assert_eq!(n, 800);
+        w.start(-1, 200, x);
+        assert!(!w.update(x - 400, 400));
+        let n = (1..=10_000u32).find(|_| w.update(x - 400, 400)).unwrap();
+        assert_eq!(n, 200);
     }
 
     #[test]

@@ -167,6 +167,8 @@ pub fn freeze_on_debug_halt() {
 // ---- the last fault, across a reset ----
 
 /// Not initialised by the startup code (cortex-m-rt's `.uninit` section), so a reset keeps it.
+/// Declared `MaybeUninit`: after a power-up it holds whatever the RAM came up with, which Rust
+/// may not read as an integer; [`load_word`] takes the words out as the hardware holds them.
 #[link_section = ".uninit.FAULT_RECORD"]
 static mut FAULT_RECORD: MaybeUninit<[u32; RECORD_WORDS]> = MaybeUninit::uninit();
 
@@ -174,34 +176,58 @@ fn record_ptr() -> *mut u32 {
     core::ptr::addr_of_mut!(FAULT_RECORD).cast::<u32>()
 }
 
-/// Stores a fault record (any context; the last writer wins).
+/// Word `i` of the record as the RAM holds it. A `read_volatile::<u32>` of memory Rust considers
+/// uninitialised is undefined behaviour as written (never-written RAM after a power-up is just
+/// that); a load in inline assembly hands back whatever bits the RAM holds as a defined `u32`
+/// (the compiler cannot see into it), which [`fault_record::decode`] then judges by magic and
+/// CRC. `None` past the record's end.
+fn load_word(i: usize) -> Option<u32> {
+    if i >= RECORD_WORDS {
+        return None;
+    }
+    let p = record_ptr().wrapping_add(i);
+    let v: u32;
+    // SAFETY: `p` is word-aligned and inside the static (i < RECORD_WORDS); the load only reads
+    // it, touches no stack and no flags.
+    unsafe {
+        core::arch::asm!("ldr {v}, [{p}]", v = out(reg) v, p = in(reg) p, options(nostack, readonly, preserves_flags));
+    }
+    Some(v)
+}
+
+/// The record in RAM now, if it decodes.
+fn held_record() -> Option<FaultRecord> {
+    let mut words = [0u32; RECORD_WORDS];
+    for (i, w) in words.iter_mut().enumerate() {
+        *w = load_word(i)?;
+    }
+    fault_record::decode(&words)
+}
+
+fn store_record(r: &FaultRecord) {
+    for (i, w) in fault_record::encode(r).iter().enumerate().take(RECORD_WORDS) {
+        // SAFETY: i < RECORD_WORDS; writing initialises the word (volatile, so a reset right
+        // after finds it).
+        unsafe { record_ptr().add(i).write_volatile(*w) };
+    }
+}
+
+/// Records a fault (any context): the first of this boot stays, a later one is counted in it
+/// (`fault_record::merge`).
 pub fn record_fault(kind: FaultKind, detail: [u32; DETAIL_WORDS]) {
-    let words = fault_record::encode(&FaultRecord { kind, boots_seen: 0, tick: ticks(), detail });
+    let new = FaultRecord { kind, boots_seen: 0, tick: ticks(), later_faults: 0, detail };
     // With interrupts masked, so an interrupt that faults in turn cannot interleave its record
-    // with this one (HardFault and NMI cannot be masked: they are the last word, and win).
-    cortex_m::interrupt::free(|_| {
-        for (i, w) in words.iter().enumerate() {
-            // SAFETY: i < RECORD_WORDS; plain RAM words, written volatile so a reset right after
-            // finds them.
-            unsafe { record_ptr().add(i).write_volatile(*w) };
-        }
-    });
+    // with this one (HardFault and NMI cannot be masked: they read the record as it stands).
+    cortex_m::interrupt::free(|_| store_record(&fault_record::merge(held_record(), new)));
 }
 
 /// The record left before the last reset, if any (random RAM after a power-up does not decode);
-/// the record stays, with its boot count raised, so a reset loop shows how often it was seen.
+/// the record stays, with its boot count raised, so a reset loop shows how often it was seen
+/// (and a fault of this boot replaces it rather than being counted in it).
 pub fn take_last_fault() -> Option<FaultRecord> {
-    let mut words = [0u32; RECORD_WORDS];
-    for (i, w) in words.iter_mut().enumerate() {
-        // SAFETY: i < RECORD_WORDS; any bit pattern is a valid u32.
-        *w = unsafe { record_ptr().add(i).read_volatile() };
-    }
-    let mut r = fault_record::decode(&words)?;
+    let mut r = held_record()?;
     r.boots_seen = r.boots_seen.saturating_add(1);
-    for (i, w) in fault_record::encode(&r).iter().enumerate() {
-        // SAFETY: as above.
-        unsafe { record_ptr().add(i).write_volatile(*w) };
-    }
+    store_record(&r);
     Some(r)
 }
 

@@ -1,8 +1,11 @@
 //! The last fault, kept in RAM the startup code does not initialise, so it survives a reset
 //! (watchdog, software) but not a power cycle. A record is a fixed array of words: magic, kind,
-//! the number of boots that have seen it, the control tick count, eight detail words (for a
-//! HardFault: stacked PC, LR, xPSR and the fault status registers), and a CRC-32 over the rest.
-//! Random RAM after power-up does not decode ([`decode`] checks magic and CRC).
+//! the number of boots that have seen it, the control tick count, the number of faults that
+//! came after it in the same boot, eight detail words (for a HardFault: stacked PC, LR, xPSR and
+//! the fault status registers), and a CRC-32 over the rest. Random RAM after power-up does not
+//! decode ([`decode`] checks magic and CRC). The first fault of a boot is the one kept
+//! ([`merge`]): a later one (an overrun during a controller fault, a panic in a fault handler)
+//! is only counted.
 
 use crate::storage::crc32;
 
@@ -11,7 +14,7 @@ pub const MAGIC: u32 = u32::from_le_bytes(*b"PZFR");
 /// Detail words in a record.
 pub const DETAIL_WORDS: usize = 8;
 /// Words in an encoded record.
-pub const RECORD_WORDS: usize = 4 + DETAIL_WORDS + 1;
+pub const RECORD_WORDS: usize = 5 + DETAIL_WORDS + 1;
 
 /// What stopped the drive.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -60,6 +63,8 @@ pub struct FaultRecord {
     pub boots_seen: u32,
     /// Control ticks since start when it happened.
     pub tick: u32,
+    /// Faults after this one in the same boot (saturating): counted, not recorded.
+    pub later_faults: u32,
     pub detail: [u32; DETAIL_WORDS],
 }
 
@@ -74,7 +79,7 @@ fn checksum(words: &[u32]) -> u32 {
 /// The record as words, CRC last.
 pub fn encode(r: &FaultRecord) -> [u32; RECORD_WORDS] {
     let mut w = [0u32; RECORD_WORDS];
-    let head = [MAGIC, r.kind as u32, r.boots_seen, r.tick];
+    let head = [MAGIC, r.kind as u32, r.boots_seen, r.tick, r.later_faults];
     for (dst, src) in w.iter_mut().zip(head.iter().chain(r.detail.iter())) {
         *dst = *src;
     }
@@ -93,8 +98,26 @@ pub fn decode(w: &[u32; RECORD_WORDS]) -> Option<FaultRecord> {
     }
     let kind = FaultKind::from_u32(*body.get(1)?)?;
     let mut detail = [0u32; DETAIL_WORDS];
-    for (d, s) in detail.iter_mut().zip(body.iter().skip(4)) {
+    for (d, s) in detail.iter_mut().zip(body.iter().skip(5)) {
         *d = *s;
     }
-    Some(FaultRecord { kind, boots_seen: *body.get(2)?, tick: *body.get(3)?, detail })
+    Some(FaultRecord {
+        kind,
+        boots_seen: *body.get(2)?,
+        tick: *body.get(3)?,
+        later_faults: *body.get(4)?,
+        detail,
+    })
+}
+
+/// What the record holds once `new` has happened, given what it holds now (`held`, decoded):
+/// the first fault of this boot stays, the later ones counted in it; a record a boot has already
+/// seen (from before the last reset) gives way to the new one.
+pub fn merge(held: Option<FaultRecord>, new: FaultRecord) -> FaultRecord {
+    match held {
+        Some(first) if first.boots_seen == 0 => {
+            FaultRecord { later_faults: first.later_faults.saturating_add(1), ..first }
+        }
+        _ => FaultRecord { later_faults: 0, ..new },
+    }
 }

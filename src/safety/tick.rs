@@ -8,9 +8,11 @@
 //!    already in the half just written); a trip drops the enable at once, latches the
 //!    controller's `Overrun` fault and records it.
 //! 3. **Step**: encoder count, preload word (an invalid word once the ADC has gone quiet for
-//!    [`PRELOAD_STALE_TICKS`]), index latch → `Controller::step`; its samples wait for the next
-//!    tick; a dropped enable in its outputs drops the pin at once. The index interrupt is
-//!    enabled only while the controller references.
+//!    [`PRELOAD_STALE_TICKS`]), index latch, limit switches (when wired and enabled: active at
+//!    the set level from the first such reading, released after [`LIMIT_RELEASE_TICKS`] quiet
+//!    ones) → `Controller::step`; its samples wait for the next tick; a dropped enable in its
+//!    outputs drops the pin at once. The index interrupt is enabled only while the controller
+//!    references.
 //! 4. **Watchdogs**: fed only by a tick that was on time.
 //!
 //! The firmware's handler (`src/firmware/control.rs`) only binds the registers to
@@ -27,6 +29,11 @@ pub type Samples = [[u16; 2]; DAC_SAMPLES_PER_STEP];
 /// at 10 kHz, twenty missed 1 kHz samples): a stuck ADC task becomes the core's preload-sensor
 /// fault instead of a frozen force reading, while the watchdogs only watch the tick.
 pub const PRELOAD_STALE_TICKS: u32 = 200;
+
+/// Readings in a row at the inactive level before a limit switch counts as released (2 ms at
+/// 10 kHz): a bouncing contact does not let a stopped drive start again. A switch counts as
+/// active from its first active reading, so a hit stops the drive in the tick that reads it.
+pub const LIMIT_RELEASE_TICKS: u16 = 20;
 
 /// The preload word the controller gets for a stale reading: outside the 12-bit ADC's range, so
 /// outside any calibration window that matches the ADC.
@@ -56,6 +63,12 @@ pub trait TickBoard {
     fn index_latch(&mut self) -> (u16, u16);
     /// Whether the index edge interrupt is enabled (called every tick; act on changes).
     fn index_listening(&mut self, on: bool);
+    /// The limit switch pins' levels now, [negative, positive] (true: high; a board whose EXTI
+    /// caught a pulse since the last tick reports that pin at the level of the pulse), or None
+    /// on a board without them wired.
+    fn limit_pins(&mut self) -> Option<[bool; 2]> {
+        None
+    }
     /// After the step: the data recorder's point and the step's cost.
     fn after_step(&mut self, controller: Option<&Controller>);
     fn feed_watchdogs(&mut self);
@@ -72,6 +85,34 @@ pub struct Tick {
     preload_seq: u16,
     preload_age_ticks: u32,
     index_seq: u16,
+    limits: LimitDebounce,
+}
+
+/// The limit switches' debounce: active at once, released after [`LIMIT_RELEASE_TICKS`] quiet
+/// readings.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LimitDebounce {
+    active: [bool; 2],
+    quiet_ticks: [u16; 2],
+}
+
+impl LimitDebounce {
+    /// One reading of both pins (true: high); the switches' states, [negative, positive].
+    pub fn update(&mut self, levels: [bool; 2], active_high: bool) -> [bool; 2] {
+        for ((active, quiet), level) in self.active.iter_mut().zip(self.quiet_ticks.iter_mut()).zip(levels) {
+            if level == active_high {
+                *active = true;
+                *quiet = 0;
+            } else if *active {
+                *quiet = quiet.saturating_add(1);
+                if *quiet >= LIMIT_RELEASE_TICKS {
+                    *active = false;
+                    *quiet = 0;
+                }
+            }
+        }
+        self.active
+    }
 }
 
 impl Tick {
@@ -86,6 +127,7 @@ impl Tick {
             preload_seq: 0,
             preload_age_ticks: 0,
             index_seq,
+            limits: LimitDebounce { active: [false; 2], quiet_ticks: [0; 2] },
         }
     }
 
@@ -119,7 +161,9 @@ impl Tick {
 
         // 2. Lateness: the bucket's verdict, and its latched fault.
         board.note_timing(&timing, &verdict);
-        if verdict.tripped_now {
+        if verdict.overrun_now {
+            // The first overrun latches the controller's fault; one during a fault (of any kind)
+            // is counted by the controller and in the fault record, the first fault kept.
             board.set_enable(false);
             if let Some(c) = controller.as_deref_mut() {
                 c.trip_external(FaultCode::Overrun);
@@ -127,7 +171,7 @@ impl Tick {
             let detail = [
                 timing.latency,
                 timing.missed,
-                self.overrun.bucket_level(),
+                self.overrun.level_at_trip(),
                 refilled.wrapping_sub(timing.due),
                 0,
                 0,
@@ -146,13 +190,26 @@ impl Tick {
         board.index_listening(controller.as_deref().is_some_and(Controller::referencing));
         let index_raw = self.index_edge(board.index_latch());
         let preload_word = self.fresh_preload_word(board.preload_sample());
-        #[allow(clippy::needless_update)]
+        let switches = controller.as_deref().map(|c| {
+            let cfg = c.config();
+            (cfg.limit_switches_enabled, cfg.limit_switch_active_high)
+        });
+        let pins = board.limit_pins();
+        let [negative_limit, positive_limit] = match (pins, switches) {
+            (Some(levels), Some((true, active_high))) => self.limits.update(levels, active_high),
+            _ => {
+                self.limits = LimitDebounce::default();
+                [false; 2]
+            }
+        };
         let inputs = Inputs {
             encoder_raw: board.encoder_raw(),
             preload_word,
             index: index_raw.is_some(),
             index_raw,
-            ..Default::default()
+            negative_limit,
+            positive_limit,
+            limits_wired: pins.is_some(),
         };
         match controller.as_deref_mut().map(|c| c.step(&inputs)) {
             Some(out) => {

@@ -124,9 +124,13 @@ pub struct Verdict {
     /// The tick was late (deadline missed, a period missed, or the DMA already in the half it
     /// wrote).
     pub late: bool,
-    /// The bucket tripped at this tick: drop the enable, latch the controller's overrun fault,
-    /// record it.
+    /// The bucket tripped at this tick, the first time since the latch was last clear: drop the
+    /// enable, latch the controller's overrun fault, record it.
     pub tripped_now: bool,
+    /// The bucket tripped at this tick, the first time or again while the latch holds (the
+    /// bucket starts afresh after each trip): every overrun is reported and counted, also
+    /// during a fault.
+    pub overrun_now: bool,
     /// Only an on-time tick feeds the watchdogs.
     pub feed_watchdogs: bool,
 }
@@ -138,11 +142,13 @@ pub struct OverrunSupervisor {
     deadline: DeadlineMonitor,
     bucket: LeakyBucket,
     latched: bool,
+    /// The bucket's level at its last trip (the fault record's detail).
+    level_at_trip: u32,
 }
 
 impl OverrunSupervisor {
     pub const fn new(deadline: DeadlineMonitor, bucket: LeakyBucket) -> Self {
-        OverrunSupervisor { deadline, bucket, latched: false }
+        OverrunSupervisor { deadline, bucket, latched: false, level_at_trip: 0 }
     }
 
     /// At the tick's entry (timebase reading `now`).
@@ -165,11 +171,16 @@ impl OverrunSupervisor {
         } else {
             self.bucket.record(late);
         }
-        let tripped_now = self.bucket.tripped() && !self.latched;
-        if tripped_now {
+        let overrun_now = self.bucket.tripped();
+        let tripped_now = overrun_now && !self.latched;
+        if overrun_now {
+            // Latched until the host clears the fault; the bucket starts afresh so a further
+            // overrun during the latch trips (and is reported) again.
             self.latched = true;
+            self.level_at_trip = self.bucket.level();
+            self.bucket.reset();
         }
-        Verdict { late, tripped_now, feed_watchdogs: !late }
+        Verdict { late, tripped_now, overrun_now, feed_watchdogs: !late }
     }
 
     /// Once the controller has no fault any more (the host cleared it), the latch and the bucket
@@ -186,5 +197,9 @@ impl OverrunSupervisor {
     }
     pub fn bucket_level(&self) -> u32 {
         self.bucket.level()
+    }
+    /// The bucket's level when it last tripped.
+    pub fn level_at_trip(&self) -> u32 {
+        self.level_at_trip
     }
 }

@@ -273,6 +273,9 @@ mod tests {
             FaultCase::EncoderLoss => FaultArg::EncoderLoss,
             FaultCase::PreloadLoss => FaultArg::PreloadLoss,
             FaultCase::Stall => FaultArg::Stall,
+            FaultCase::FrfIntoStop => FaultArg::FrfIntoStop,
+            FaultCase::EncoderJitter => FaultArg::EncoderJitter,
+            FaultCase::LimitHit => FaultArg::LimitHit,
         };
         for a in FaultArg::value_variants() {
             assert_eq!(fault(FaultCase::from(*a)), *a);

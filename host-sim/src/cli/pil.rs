@@ -74,6 +74,13 @@ pub enum FaultArg {
     PreloadLoss,
     /// A load of twice the stall force opposes the move from the start.
     Stall,
+    /// Referencing toward a hard end stop 100 µm on the −x side (the index 1 mm on the +x side,
+    /// no limit switches): the drive must go safe.
+    FrfIntoStop,
+    /// One encoder channel lost 20 ms into the move, the other toggling (the count flickers).
+    EncoderJitter,
+    /// Open-loop stepping toward a limit switch at 100 µm: the run ends at the switch.
+    LimitHit,
 }
 
 impl From<FaultArg> for FaultCase {
@@ -83,6 +90,9 @@ impl From<FaultArg> for FaultCase {
             FaultArg::EncoderLoss => FaultCase::EncoderLoss,
             FaultArg::PreloadLoss => FaultCase::PreloadLoss,
             FaultArg::Stall => FaultCase::Stall,
+            FaultArg::FrfIntoStop => FaultCase::FrfIntoStop,
+            FaultArg::EncoderJitter => FaultCase::EncoderJitter,
+            FaultArg::LimitHit => FaultCase::LimitHit,
         }
     }
 }

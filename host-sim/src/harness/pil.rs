@@ -33,7 +33,21 @@ pub enum FaultCase {
     PreloadLoss,
     /// A load of twice the stall force opposes the move from the start.
     Stall,
+    /// Referencing (`FRF`) with the index 1 mm on the +x side and a hard end stop 100 µm on the
+    /// −x side, no limit switches: the search toward −x meets the stop and must go safe.
+    FrfIntoStop,
+    /// One encoder channel lost 20 ms into the move, the other still toggling: the count
+    /// flickers between two values (the coarse mode's encoder-loss watch, by net progress).
+    EncoderJitter,
+    /// Servo off, open-loop stepping (`XOS`, 80 V, 1.5 kHz) toward a positive limit switch at
+    /// 100 µm: the run must end in the period that reads the switch.
+    LimitHit,
 }
+
+/// Where the end stop, the index and the limit switch of the fault cases are (m).
+const FRF_STOP_M: f64 = -100e-6;
+const FRF_INDEX_M: f64 = 1e-3;
+const LIMIT_SWITCH_M: f64 = 100e-6;
 
 /// What one PIL run does (`host-sim pil`; where the ELF comes from, the budget and the output
 /// are the CLI's).
@@ -77,6 +91,12 @@ pub struct PilResult {
     /// both DAC words within 1 LSB of mid-range at the end of the period); 1 = the very period
     /// in which the fault was seen.
     pub fault_safe_after_ticks: Option<u64>,
+    /// With `--fault`: periods from the event (the injection 20 ms in; with `frf-into-stop` the
+    /// slider meeting the end stop) to the period whose state is the fault (1 = that period).
+    pub fault_after_event_ticks: Option<u64>,
+    /// With `--fault limit-hit`: periods from the first period that read the switch active to
+    /// the one that ended the run (1 = that very period).
+    pub limit_stop_ticks: Option<u64>,
     pub ticks: u64,
     /// The whole tick on the M4: `Controller::step` plus packing 20 sample pairs into the DMA
     /// half-buffer.
@@ -331,6 +351,8 @@ pub fn run(p: &Params, args: &PilOptions, elf: &Path) -> Result<PilResult> {
         overshoot_nm: 0.0,
         fault: None,
         fault_safe_after_ticks: None,
+        fault_after_event_ticks: None,
+        limit_stop_ticks: None,
         ticks: 0,
         tick_instructions_mean: 0.0,
         tick_instructions_max: 0,
@@ -404,30 +426,87 @@ pub fn run(p: &Params, args: &PilOptions, elf: &Path) -> Result<PilResult> {
     let max_s = 2.0 + 5.0 * args.to_um.abs() * 1e-6 / 2.0e-3;
     let hold_s = 0.05;
     let mut inside_since: Option<f64> = None;
-    let mut command = Command::MoveTo(to_nm);
+    let mut command = match args.fault {
+        Some(FaultCase::FrfIntoStop) => {
+            sil.plant.end_stops_m = Some((FRF_STOP_M, 1.0));
+            sil.index_position_m = Some(FRF_INDEX_M);
+            Command::Reference
+        }
+        Some(FaultCase::LimitHit) => {
+            period(&mut sil, Command::Servo(false), &mut result)?;
+            sil.limits_m = Some((-1.0, LIMIT_SWITCH_M));
+            Command::OpenLoop { cycles: 3000, amplitude_v: 80.0, frequency_hz: 1500.0 }
+        }
+        _ => Command::MoveTo(to_nm),
+    };
     let mut fault_at: Option<u64> = None;
     let mut injected = false;
+    // The period (its number in `result.ticks`) of the fault case's event.
+    let mut event_at: Option<u64> = None;
     while sil.time_s() - t0 < max_s {
         let t = sil.time_s() - t0;
         if !injected && t >= 0.02 {
+            let counts = sil.plant.encoder_counts();
             match args.fault {
                 Some(FaultCase::EncoderJump) => sil.encoder_offset_counts += 5_000,
-                Some(FaultCase::EncoderLoss) => sil.frozen_encoder_counts = Some(sil.plant.encoder_counts()),
+                Some(FaultCase::EncoderLoss) => sil.frozen_encoder_counts = Some(counts),
+                Some(FaultCase::EncoderJitter) => sil.jittering_encoder_counts = Some(counts),
                 Some(FaultCase::PreloadLoss) => sil.plant.set_preload_n(2.0),
                 _ => {}
             }
+            if matches!(
+                args.fault,
+                Some(
+                    FaultCase::EncoderJump
+                        | FaultCase::EncoderLoss
+                        | FaultCase::EncoderJitter
+                        | FaultCase::PreloadLoss
+                )
+            ) {
+                event_at = Some(result.ticks);
+            }
             injected = true;
+        }
+        // The stop met, the switch read: this period's inputs are the board's reading now.
+        let x_m = sil.plant.slider_position_m();
+        match args.fault {
+            Some(FaultCase::FrfIntoStop) if sil.plant.at_end_stop() => {
+                event_at.get_or_insert(result.ticks);
+            }
+            Some(FaultCase::LimitHit) if x_m >= LIMIT_SWITCH_M => {
+                event_at.get_or_insert(result.ticks);
+            }
+            _ => {}
         }
         let reply = period(&mut sil, command, &mut result)?;
         if command != Command::None && reply.command_refused {
-            bail!("the target refused the move to {} µm", args.to_um);
+            bail!("the target refused the fault case's command ({command:?})");
         }
         command = Command::None;
+        if args.fault == Some(FaultCase::LimitHit) {
+            if let Some(at) = event_at {
+                if reply.state != pil_wire::state_code(State::OpenLoop) && result.limit_stop_ticks.is_none() {
+                    result.limit_stop_ticks = Some(result.ticks - at);
+                }
+                // A few periods more, then the case is done.
+                if result.ticks - at >= 20 || reply.state & 0x80 != 0 {
+                    break;
+                }
+            } else if reply.state != pil_wire::state_code(State::OpenLoop) {
+                bail!(
+                    "open-loop stepping ended before the switch (state {})",
+                    pil_wire::state_name(reply.state)
+                );
+            }
+        }
         let pos = sil.plant.slider_position_m() * 1e9;
         let err = pos - to_nm as f64;
         result.overshoot_nm = result.overshoot_nm.max(f64::from(dir) * err);
         result.final_error_nm = err;
         if reply.state & 0x80 != 0 {
+            if fault_at.is_none() {
+                result.fault_after_event_ticks = event_at.map(|at| result.ticks - at);
+            }
             let n = fault_at.get_or_insert(result.ticks);
             if result.fault_safe_after_ticks.is_none() && is_safe(&reply.outputs, mid) {
                 result.fault_safe_after_ticks = Some(result.ticks - *n + 1);

@@ -210,6 +210,10 @@ pub struct Sil {
     /// A lost encoder (cable off, read head dirty): the counter keeps this count whatever the
     /// slider does. None: the encoder follows the slider.
     pub frozen_encoder_counts: Option<i64>,
+    /// One quadrature channel lost at this count, the other still toggling: the counter flickers
+    /// between this count and the next as the live channel's edges alternate (up on one edge,
+    /// down on the next; the live line toggles every two counts of travel). None: both channels.
+    pub jittering_encoder_counts: Option<i64>,
     /// Encoder index mark on the scale (plant slider position, m): the index input is set in
     /// the period in which the slider crosses it. None: the scale has no index.
     pub index_position_m: Option<f64>,
@@ -240,6 +244,7 @@ impl Sil {
             dac_period_s: 1.0 / p.amplifier.dac_rate_hz,
             encoder_offset_counts: 0,
             frozen_encoder_counts: None,
+            jittering_encoder_counts: None,
             index_position_m: None,
             limits_m: None,
             last_slider_m: 0.0,
@@ -255,9 +260,12 @@ impl Sil {
 
     /// What the board reads now.
     pub fn inputs(&mut self) -> Inputs {
-        let counts = self
-            .frozen_encoder_counts
-            .unwrap_or_else(|| self.plant.encoder_counts() + self.encoder_offset_counts);
+        let live = self.plant.encoder_counts() + self.encoder_offset_counts;
+        let counts = match (self.frozen_encoder_counts, self.jittering_encoder_counts) {
+            (Some(frozen), _) => frozen,
+            (None, Some(base)) => base + (live - base).div_euclid(2).rem_euclid(2),
+            (None, None) => live,
+        };
         let x = self.plant.slider_position_m();
         let index = self.index_position_m.is_some_and(|xi| (self.last_slider_m < xi) != (x < xi));
         self.last_slider_m = x;

@@ -174,6 +174,9 @@ pub struct Plant {
     dac_period_s: f64,
     // Slider.
     pub load: ExternalLoad,
+    /// Hard end stops (slider position, m; lower, upper): the slider stops dead on meeting one
+    /// (an inelastic stop). None: free travel.
+    pub end_stops_m: Option<(f64, f64)>,
     slider_x_m: f64,
     slider_v_m_s: f64,
     bristle_m: f64,
@@ -296,6 +299,7 @@ impl Plant {
             next_dac_s: 0.0,
             dac_period_s: 1.0 / p.amplifier.dac_rate_hz,
             load: ExternalLoad::default(),
+            end_stops_m: None,
             slider_x_m: 0.0,
             slider_v_m_s: 0.0,
             bristle_m: 0.0,
@@ -632,6 +636,20 @@ impl Plant {
         self.friction_force_n = friction;
         self.slider_v_m_s = v_old + dt * (ext + friction) / mass;
         self.slider_x_m += dt * self.slider_v_m_s;
+        if let Some((lo, hi)) = self.end_stops_m {
+            if self.slider_x_m <= lo {
+                self.slider_x_m = lo;
+                self.slider_v_m_s = self.slider_v_m_s.max(0.0);
+            } else if self.slider_x_m >= hi {
+                self.slider_x_m = hi;
+                self.slider_v_m_s = self.slider_v_m_s.min(0.0);
+            }
+        }
+    }
+
+    /// Whether the slider is against an end stop.
+    pub fn at_end_stop(&self) -> bool {
+        self.end_stops_m.is_some_and(|(lo, hi)| self.slider_x_m <= lo || self.slider_x_m >= hi)
     }
 
     /// Runs `duration_s` of plant time.
