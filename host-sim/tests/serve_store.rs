@@ -63,6 +63,8 @@ const SET: &[(&str, &str, &str)] = &[
     ("0x1022", "900", "900"),
     ("0x1023", "120", "120"),
     ("0x1024", "1", "1"),
+    ("0x1025", "1", "1"),
+    ("0x1026", "1", "1"),
     ("0x1040", "1", "1"),
 ];
 
@@ -149,6 +151,7 @@ fn wpa_then_restart_brings_back_every_stored_parameter_and_nothing_else() {
     c.encoder_loss_counts = 120;
     c.idn_c867_compatible = true;
     c.contact_table = true;
+    (c.limit_switches_enabled, c.limit_switch_active_high) = (true, true);
     let record = std::fs::read(&store).expect("WPA wrote the store");
     assert_eq!(record, piezo_drive::storage::encode(&expected).to_vec());
 
