@@ -1373,3 +1373,22 @@ fn xts_says_which_model_table_is_in_use() {
         Rig { gcs: Gcs::new(), ctl: Controller::new(defaults::controller_config()).unwrap(), ..Rig::new() };
     fresh.transcript(&[(b"XTS?\n", b"table=none \nbuild=idle \nlast_build_us=0\n")]);
 }
+
+#[test]
+fn lim_and_the_status_register_follow_the_limit_switches_the_board_reads() {
+    let mut rig = Rig::new();
+    // Not read (0x1025 = 0): no limit switches, whatever the pins say.
+    rig.steps(2, Inputs { limits_wired: true, negative_limit: true, ..Default::default() });
+    rig.transcript(&[(b"LIM?\n", b"1=0\n")]);
+    let idle = u16::from_str_radix(std::str::from_utf8(&rig.send(b"\x04")[2..6]).unwrap(), 16).unwrap();
+    assert_eq!(idle & 0x0005, 0);
+    // Read, and the negative one active: LIM? 1, bit 0 of #4 set, bit 2 clear.
+    rig.transcript(&[(b"SPA 1 0x1025 1\n", b"")]);
+    rig.steps(2, Inputs { limits_wired: true, negative_limit: true, ..Default::default() });
+    rig.transcript(&[(b"LIM?\n", b"1=1\n")]);
+    let hit = u16::from_str_radix(std::str::from_utf8(&rig.send(b"\x04")[2..6]).unwrap(), 16).unwrap();
+    assert_eq!(hit & 0x0005, 0x0001);
+    // A board that reads no pins has none, whatever the setting.
+    rig.steps(2, Inputs::default());
+    rig.transcript(&[(b"LIM?\n", b"1=0\n")]);
+}

@@ -88,7 +88,7 @@ fn limit_reference(gcs: &mut Gcs, c: Call, negative: bool) -> GcsResult {
     for a in args {
         axis(a)?;
     }
-    if !limit_switches(ctl.config()).wired {
+    if !limit_switches(&ctl.limit_switches()).wired {
         return Err(error::NO_LIMIT_SWITCH);
     }
     if !negative || ctl.config().reference_signal != ReferenceSignal::NegativeLimit {

@@ -51,6 +51,8 @@ pub struct Snapshot {
     thrust: Option<ThrustInputs>,
     /// The model the table in use came from (`XTS?`).
     table_model: Option<TableModelKind>,
+    /// The limit switches as the controller sees them (`LIM?`, `#4`).
+    limit_switches: crate::controller::LimitSwitches,
     pub latch: Latch,
 }
 
@@ -74,6 +76,7 @@ impl Snapshot {
             drive_voltage_v: ctl.drive_voltage_v(),
             drive_frequency_hz: ctl.drive_frequency_hz(),
             table_model: ctl.table_model(),
+            limit_switches: ctl.limit_switches(),
             thrust: thrust.then(|| ctl.thrust_inputs()),
             latch: Latch::of(ctl),
         }
@@ -115,6 +118,10 @@ impl Snapshot {
     pub fn drive_voltage_v(&self) -> f32 {
         self.drive_voltage_v
     }
+    pub fn limit_switches(&self) -> crate::controller::LimitSwitches {
+        self.limit_switches
+    }
+
     pub fn table_model(&self) -> Option<TableModelKind> {
         self.table_model
     }

@@ -8,7 +8,6 @@ use super::call::{GcsResult, Query};
 use super::framing::Out;
 use super::snapshot::Snapshot;
 use super::{error, Gcs};
-use crate::controller::ControllerConfig;
 
 /// The limit switches as the protocol reports them: whether the axis has them (`LIM?`) and
 /// whether each is active now (bits 0 and 2 of the status register).
@@ -19,12 +18,13 @@ pub struct LimitSwitches {
     pub positive_active: bool,
 }
 
-/// The one place the protocol learns about limit switches. The core has no setting yet that
-/// says a board has them wired, nor does it keep their last state, so the answer is: none
-/// (`LIM?` → 0, status bits 0 and 2 clear, `FNL`/`FPL` refused with 32). When the core gains
-/// them, this reads them from the settings (and the state) and every report follows.
-pub fn limit_switches(_cfg: &ControllerConfig) -> LimitSwitches {
-    LimitSwitches::default()
+/// The one place the protocol learns about limit switches: the controller's own view
+/// ([`crate::controller::Controller::limit_switches`]): the axis has them (`LIM?` → 1, `FNL`
+/// allowed) when the board reads their pins and the setting `0x1025` has them read; bits 0 and 2
+/// of the status register are their debounced states then.
+pub fn limit_switches(lim: &crate::controller::LimitSwitches) -> LimitSwitches {
+    let wired = lim.wired && lim.enabled;
+    LimitSwitches { wired, negative_active: wired && lim.negative, positive_active: wired && lim.positive }
 }
 
 /// PI's status register (`#4`, `SRG? 1 1`; C-863/C-867 layout): bit 0 negative limit switch,
@@ -32,7 +32,7 @@ pub fn limit_switches(_cfg: &ControllerConfig) -> LimitSwitches {
 /// motion (moving, referencing or stepping), 14 referencing, 15 on target. Bit 1 (reference
 /// switch) and the digital inputs (4–7) stay 0: the board has no such inputs.
 pub(super) fn status_register(latched_error: i32, ctl: &Snapshot) -> u16 {
-    let lim = limit_switches(ctl.config());
+    let lim = limit_switches(&ctl.limit_switches());
     let mut r = 0u16;
     for (on, bit) in [
         (lim.negative_active, 0x0001),
@@ -65,7 +65,7 @@ pub(super) fn write_register(out: &mut Out, r: u16) {
 /// `LIM?`: whether the axis has limit switches (0 or 1).
 pub(super) fn lim_query(gcs: &mut Gcs, c: Query) -> GcsResult {
     let Query { args, ctl, out, .. } = c;
-    let wired = limit_switches(ctl.config()).wired;
+    let wired = limit_switches(&ctl.limit_switches()).wired;
     gcs.axis_query(args, out, |out| out.u(u64::from(wired)))?;
     Ok(())
 }
