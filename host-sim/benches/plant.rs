@@ -23,6 +23,26 @@ fn plant(c: &mut Criterion) {
         plant.run(&mut drive, 0.02);
         b.iter(|| plant.run(&mut drive, sim_s));
     });
+    // The sourced prototype (Kelvin–Voigt friction layer): its steps with the layer's switches
+    // located, and the same plant taking every step whole (before they were located).
+    let sourced = Params::from_toml(include_str!("../params/prototype-sourced.toml")).expect("valid file");
+    for (name, locate) in [("run_10ms_sourced", true), ("run_10ms_sourced_whole_steps", false)] {
+        g.bench_function(name, |b| {
+            let mut plant = Plant::new(&sourced, 16.0);
+            if !locate {
+                plant.without_friction_switch_location();
+            }
+            let mut drive = QuadratureSine {
+                voltage_v: 100.0,
+                frequency_hz: 1500.0,
+                direction: 1,
+                mid_v: 50.0,
+                ramp_s: 0.0,
+            };
+            plant.run(&mut drive, 0.02);
+            b.iter(|| plant.run(&mut drive, sim_s));
+        });
+    }
     // The heavy-slider set (8 kg counterweight, 50 kg slider, rigid stick) the default was until
     // the plant got the paper's masses: the before of the real-masses change.
     let heavy = Params::from_toml(include_str!("../params/heavy-slider.toml")).expect("valid file");

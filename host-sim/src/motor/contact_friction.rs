@@ -41,6 +41,10 @@ pub struct StepScale {
     /// εc's implicit share: `k = εc·dt/M` and `1/(1 + k)`.
     viscous_k: f64,
     viscous_inv: f64,
+    /// Kelvin–Voigt slip: relax by the exact `e^{−dt·kt/ct}` instead of implicit Euler
+    /// ([`StepScale::with_exact_relaxation`]); the decay factor.
+    exact_relaxation: bool,
+    relax_decay: f64,
 }
 
 impl StepScale {
@@ -64,7 +68,18 @@ impl StepScale {
             relax_inv: 1.0 / (kt + ct_per_dt),
             viscous_k,
             viscous_inv: 1.0 / (1.0 + viscous_k),
+            exact_relaxation: false,
+            relax_decay: if ct > 0.0 { (-dt_s * kt / ct).exp() } else { 0.0 },
         }
+    }
+
+    /// The same step with the Kelvin–Voigt layer's relaxation in slip solved exactly: under the
+    /// step's constant sliding force `F` the layer obeys `kt·s + ct·ṡ = F`, linear, so
+    /// `s(dt) = F/kt + (s0 − F/kt)·e^{−dt·kt/ct}`. Implicit Euler (the default) lags that by
+    /// a share of `dt·kt/ct` of the relaxation; the plant's step is of the order of `ct/kt`.
+    pub fn with_exact_relaxation(mut self) -> Self {
+        self.exact_relaxation = true;
+        self
     }
 }
 
@@ -169,9 +184,21 @@ impl Layer {
             if i.contact_n > 0.0 { i.mu_scale * law.mu_dynamic * i.contact_n * trial.signum() } else { 0.0 };
         // The layer relaxes toward slide/kt: kt·s' + ct·(s' − s)/dt = slide (implicit Euler: no
         // overshoot however short ct/kt is against the step).
-        let s_new = (slide + c.ct_per_dt * self.shear_m) * c.relax_inv;
-        self.shear_rate_m_s = (s_new - self.shear_m) * c.per_dt;
-        self.shear_m = s_new;
+        if c.exact_relaxation {
+            // Exact: the shear rate at the step's end from the layer's own law.
+            let s_eq = slide / kt;
+            let s_new = s_eq + (self.shear_m - s_eq) * c.relax_decay;
+            self.shear_rate_m_s = if law.ct_n_s_per_m > 0.0 {
+                (slide - kt * s_new) / law.ct_n_s_per_m
+            } else {
+                (s_new - self.shear_m) * c.per_dt
+            };
+            self.shear_m = s_new;
+        } else {
+            let s_new = (slide + c.ct_per_dt * self.shear_m) * c.relax_inv;
+            self.shear_rate_m_s = (s_new - self.shear_m) * c.per_dt;
+            self.shear_m = s_new;
+        }
         self.mode = sliding_mode(i.contact_n, slide);
         if i.contact_n > 0.0 {
             slide + viscous(law, i, slide)
