@@ -157,7 +157,8 @@ const SLIP_LEVEL: usize = 3;
 /// steps, so a whole step of the wrong mode at each landing, breakaway and re-stick moved the
 /// speed by a share of the step: 0.5 kg, 9 N, 100 V, 2.1 kHz against 2.075 N ran at
 /// −0.309 mm/s on 1 µs steps, −0.247 on 0.5 µs, −0.220 on 0.25 µs, −0.209 on 0.125 µs (first
-/// order). Located to 1/64 of a step the same row runs at −0.208, −0.2005, −0.1982, −0.1976.
+/// order). Located to 1/64 of a step the same row runs at −0.2082, −0.2004, −0.1982, −0.1975
+/// (an independent solution of the same equations: −0.198).
 const FRICTION_SWITCH_LEVELS: usize = 6;
 
 pub struct Plant {
