@@ -108,9 +108,8 @@ pub struct Thresholds {
     /// `consistency_limit_after`).
     pub consistency_ratio: f64,
     pub consistency_ratio_after: f64,
-    /// R at or above which effect selection goes on: the χ²(n − p)/(n − p) quantile, R's limit
-    /// with the noise known (m → ∞). Lower than `consistency_ratio`: the search stops only where
-    /// even an exact noise estimate would call the residuals noise.
+    /// R at or above which effect selection goes on: F(n − p, m)'s quantile at
+    /// [`SEARCH_ALPHA`] (5 %), lower than `consistency_ratio`'s at α.
     pub search_ratio: f64,
     /// Minimum ΔBIC of a candidate of one and of two fitted parameters.
     pub delta_bic: [f64; 2],
@@ -129,7 +128,7 @@ impl Thresholds {
             alpha,
             consistency_ratio: consistency_limit(rows, BASE_PARAMS, noise_dof, alpha),
             consistency_ratio_after: f64::NAN,
-            search_ratio: consistency_limit(rows, BASE_PARAMS, 0, alpha),
+            search_ratio: consistency_limit(rows, BASE_PARAMS, noise_dof, SEARCH_ALPHA),
             delta_bic: [bic(1), bic(2)],
             cv_improvement: opts.min_cv_improvement,
         }
@@ -147,6 +146,11 @@ impl Thresholds {
         }
     }
 }
+
+/// The significance level at which R keeps the search going ([`Thresholds::search_ratio`]):
+/// searching costs a round and names nothing by itself (ΔBIC and cross-validation decide), so
+/// it goes on unless noise would give such an R more often than one time in twenty.
+pub const SEARCH_ALPHA: f64 = 0.05;
 
 /// The R below which residuals of a fit of `p` parameters to `n` rows are noise, with the noise
 /// estimated from `m` pseudo-residuals ([`Thresholds`]).
@@ -453,8 +457,8 @@ impl State {
     /// Whether effect selection goes on: structure above noise along a condition, or R at least
     /// its limit with the noise known ([`Thresholds::search_ratio`]).
     fn search_goes_on(&self, data: &Data, opts: &Options) -> bool {
-        let known = consistency_limit(data.len(), self.model.n_params(), 0, opts.signature_alpha);
-        self.ratio >= known || !self.within_noise(data, opts).2.is_empty()
+        let limit = consistency_limit(data.len(), self.model.n_params(), self.noise_dof, SEARCH_ALPHA);
+        self.ratio >= limit || !self.within_noise(data, opts).2.is_empty()
     }
 }
 
@@ -909,17 +913,23 @@ mod tests {
             "{}",
             t.delta_bic[1]
         );
-        // With the noise known R's limit is the search's.
-        assert!((t.search_ratio - consistency_limit(192, BASE_PARAMS, 0, 1e-3)).abs() < 1e-12);
+        assert!(t.search_ratio > 1.0 && t.search_ratio < t.consistency_ratio);
+        assert!((chi2::f_upper_tail(t.search_ratio, 189, 35) - SEARCH_ALPHA).abs() < 1e-3);
         // R's limit is F(n − p, m)'s 1 − α quantile: above the known-noise χ² limit, below the
         // ratio a handful of pseudo-residuals would allow, and falling as m grows.
         let known = consistency_limit(192, BASE_PARAMS, 0, 1e-3);
         let r = t.consistency_ratio;
         let many = consistency_limit(192, BASE_PARAMS, 100_000, 1e-3);
         eprintln!(
-            "R limits: m = 35 {r:.3}, m → ∞ {many:.3}, χ² {known:.3}; board (36 rows, m = 9) {:.2}",
-            consistency_limit(36, 3, 9, 1e-3)
+            "R limits: m = 35 {r:.3}, m → ∞ {many:.3}, χ² {known:.3}; board (36 rows, m = 3) {:.2}; search: \
+             192 rows {:.2}, 300 rows (m 66) {:.2}, board {:.2}",
+            consistency_limit(36, 3, 3, 1e-3),
+            t.search_ratio,
+            consistency_limit(300, 3, 66, SEARCH_ALPHA),
+            consistency_limit(36, 3, 3, SEARCH_ALPHA)
         );
+        assert!(t.search_ratio > 1.0 && t.search_ratio < t.consistency_ratio);
+        assert!((chi2::f_upper_tail(t.search_ratio, 189, 35) - SEARCH_ALPHA).abs() < 1e-3);
         assert!((many - known).abs() < 0.01 * known, "{many} vs {known}");
         assert!(r > known && r < consistency_limit(192, BASE_PARAMS, 10, 1e-3));
         assert!(chi2::f_upper_tail(r, 189, 35) > 0.9e-3 && chi2::f_upper_tail(r, 189, 35) < 1.1e-3);

@@ -161,12 +161,10 @@ pub(super) fn select_effects(
     let mut round = 0;
     // The search starts, and goes on, on either signal: structure above noise along one
     // condition (a small effect along one condition moves R little: an amplifier 1 % slower at
-    // the top frequency left R at 1.5 with χ²/dof 24 along frequency), or R above what noise
-    // gives with the noise known (χ²(n − p), [`Thresholds::search_ratio`]): it stops only where
-    // even an exact noise estimate would call the residuals noise. The verdict's limit allows
-    // for the noise estimate's own uncertainty (F(n − p, m)), which on a board's few curves
-    // (m = 3) is R 45: a search that stopped there left the guide's friction at 0.22 N for 0.4,
-    // the Stribeck rise that takes up the contact model's error there untried.
+    // the top frequency left R at 1.5 with χ²/dof 24 along frequency), or R above F(n − p, m)'s
+    // 5 % quantile ([`Thresholds::search_ratio`]). The verdict's limit, at α = 0.001, is on a
+    // board's few curves (m = 3) R 45: a search that stopped there left the guide's friction at
+    // 0.22 N for 0.4, the Stribeck rise that takes up the contact model's error there untried.
     while state.model.effects.len() < opts.max_effects && state.search_goes_on(data, opts) {
         round += 1;
         let todo: Vec<Effect> =
