@@ -10,7 +10,7 @@ mod board {
     use defmt_rtt as _;
     use embassy_executor::{InterruptExecutor, SendSpawner, Spawner};
 
-    use embassy_stm32::gpio::{Level, Output, Speed};
+    use embassy_stm32::gpio::{Input, Level, Output, Pull, Speed};
     use embassy_stm32::interrupt;
     use embassy_stm32::interrupt::InterruptExt;
     use embassy_stm32::time::Hertz;
@@ -156,7 +156,10 @@ mod board {
         // Give the preload filter a few samples before the loop starts.
         Timer::after_millis(5).await;
         wdg.pet();
-        control::start(p.TIM7, p.TIM5, drive, enc, amp_enable);
+        // Limit switches (docs/hardware.md): pulled up, so a switch closing to ground reads low;
+        // setting 0x1026 says which level is active, 0x1025 has them read.
+        let limits = [Input::new(p.PB5, Pull::Up), Input::new(p.PC7, Pull::Up)];
+        control::start(p.TIM7, p.TIM5, drive, enc, amp_enable, limits);
         defmt::info!("control loop running at {} Hz", defaults::LOOP_HZ);
         // From here the tick feeds both watchdogs; the window watchdog starts once it runs.
         Timer::after_millis(1).await;

@@ -935,3 +935,25 @@ fn an_overrun_during_a_fault_is_counted() {
     assert_eq!(ctl.fault(), Some(FaultCode::EncoderJump));
     assert_eq!(ctl.overrun_count(), 2);
 }
+
+#[test]
+fn the_independent_watchdog_is_fed_only_while_the_communication_executor_beats() {
+    use piezo_drive::safety::watchdog::Heartbeat;
+    let mut h = Heartbeat::default();
+    // A beat every 100 ticks (the monitor's 10 ms at 10 kHz): alive throughout.
+    let mut beat = 0u32;
+    for t in 0..10_000u32 {
+        if t % 100 == 0 {
+            beat += 1;
+        }
+        assert!(h.alive(beat), "tick {t}");
+    }
+    // Its last beat, then it hangs: alive for 299 more ticks, dead from the 300th (30 ms) on
+    // and until it beats again.
+    beat += 1;
+    assert!(h.alive(beat));
+    let dead_from = (1..=1_000u32).find(|_| !h.alive(beat)).expect("goes stale");
+    assert_eq!(dead_from, Heartbeat::STALE_TICKS);
+    assert!(!h.alive(beat));
+    assert!(h.alive(beat + 1), "a new beat revives it");
+}

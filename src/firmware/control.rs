@@ -43,7 +43,7 @@ use core::sync::atomic::{compiler_fence, AtomicBool, AtomicU32, Ordering};
 use cortex_m::interrupt::InterruptNumber;
 use cortex_m::peripheral::scb::VectActive;
 use cortex_m::peripheral::{DWT, NVIC, SCB};
-use embassy_stm32::gpio::Output;
+use embassy_stm32::gpio::{Input, Output};
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::pac;
@@ -57,6 +57,7 @@ use piezo_drive::safety::fault_record::FaultKind;
 use piezo_drive::safety::soft_start::SoftStart;
 use piezo_drive::safety::tick::{Samples, Tick, TickBoard};
 use piezo_drive::safety::timing::{DeadlineMonitor, LeakyBucket, OverrunSupervisor, TickTiming, Verdict};
+use piezo_drive::safety::watchdog::Heartbeat;
 
 use super::drive::Drive;
 use super::encoder::{Encoder, INDEX_LATCH};
@@ -221,6 +222,11 @@ pub struct TickHw {
     entry_cycles: u32,
     /// The index edge interrupt is enabled.
     index_on: bool,
+    /// The communication executor's heartbeat: the independent watchdog is fed only while it
+    /// beats.
+    heartbeat: Heartbeat,
+    /// The limit switch inputs [negative, positive] (`firmware/mod.rs`'s pin map).
+    limits: [Input<'static>; 2],
 }
 
 impl TickBoard for TickHw {
@@ -286,8 +292,14 @@ impl TickBoard for TickHw {
         }
         super::safety::count_tick();
     }
+    fn limit_pins(&mut self) -> Option<[bool; 2]> {
+        // Read every tick (100 µs): the slider moves under 0.5 µm in that time, a switch's active
+        // zone is millimetres long, so no pulse it makes is shorter than a tick.
+        Some([self.limits[0].is_high(), self.limits[1].is_high()])
+    }
     fn feed_watchdogs(&mut self) {
-        super::safety::feed_watchdogs();
+        let alive = self.heartbeat.alive(super::safety::COMMS_BEAT.load(Ordering::Relaxed));
+        super::safety::feed_watchdogs(alive);
     }
 }
 
@@ -316,6 +328,7 @@ pub fn start(
     drive: Drive,
     encoder: Encoder,
     amp_enable: Output<'static>,
+    limits: [Input<'static>; 2],
 ) {
     let timer = Timer::new(tim7);
     let r = timer.regs_basic();
@@ -343,7 +356,15 @@ pub fn start(
 
     let _ = TICK.lock(|tick| {
         let ctx = tick.insert(TickCtx {
-            hw: TickHw { drive, encoder, amp_enable, entry_cycles: 0, index_on: false },
+            hw: TickHw {
+                drive,
+                encoder,
+                amp_enable,
+                entry_cycles: 0,
+                index_on: false,
+                heartbeat: Heartbeat::default(),
+                limits,
+            },
             tick: Tick::new(
                 OverrunSupervisor::new(
                     DeadlineMonitor::new(FIRST_DUE_COUNTS, TICK_COUNTS, REFILL_DEADLINE_COUNTS),

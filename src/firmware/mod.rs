@@ -14,6 +14,7 @@
 //! | encoder A / B | PA6 [D12] / PA7 [D11] | TIM3_CH1 / TIM3_CH2 (quadrature) |
 //! | encoder index (optional) | PB10 [D6] | EXTI10 |
 //! | preload cell (amplified bridge) | PC0 [A5] | ADC1_IN6 |
+//! | limit switches, negative / positive (optional) | PB5 [D4] / PC7 [D9] | GPIO, pull-up |
 //! | UART to the host | PA2 / PA3 | LPUART1 TX / RX (ST-LINK virtual COM port) |
 
 // On the host the bin is only a stub plus the unit tests of `ring`.

@@ -20,6 +20,9 @@ pub async fn monitor_task() -> ! {
     let mut polls: u32 = 0;
     loop {
         Timer::after_millis(10).await;
+        // The communication executor is alive: the tick feeds the independent watchdog only
+        // while this counts (`safety::COMMS_BEAT`).
+        safety::COMMS_BEAT.fetch_add(1, Ordering::Relaxed);
         let state = control::CONTROLLER.lock(|c| c.as_ref().map(|c| c.state())).flatten();
         if state != last_state {
             if let Some(s) = state {

@@ -59,6 +59,8 @@ const SR_EOP: u32 = 0x1;
 /// Longest wait for the erase (datasheet: 22 ms typical per page) and for parking the drive (the
 /// tick ramps it down over the soft start's 20 ms before it drops the enable).
 const ERASE_TIMEOUT: Duration = Duration::from_millis(100);
+/// Longest wait for one double word to program: a hundred times its ~85 µs.
+const PROGRAM_TIMEOUT: Duration = Duration::from_millis(10);
 const PARK_TIMEOUT: Duration = Duration::from_millis(50);
 
 /// The settings to store: a copy taken under the controller's lock; encoded (range check, CRC)
@@ -181,9 +183,16 @@ impl ParamFlash {
     /// Erases a page without blocking anything: polls the busy flag between 1 ms sleeps.
     async fn erase_page(&mut self, page: Page) -> Result<(), FlashError> {
         let mut waited = Duration::from_ticks(0);
+        // An operation left running (none should be): waited for as long as an erase, no more.
         while busy() {
+            if waited > ERASE_TIMEOUT {
+                lock();
+                return Err(FlashError::Timeout);
+            }
             Timer::after_millis(1).await;
+            waited += Duration::from_millis(1);
         }
+        waited = Duration::from_ticks(0);
         self.start_erase(page);
         while busy() {
             if waited > ERASE_TIMEOUT {
@@ -223,8 +232,17 @@ impl ParamFlash {
                 base.add(at + 1).write_volatile(word(4));
             }
             cortex_m::asm::dsb();
+            // A double word takes ~85 µs (RM0440); a flash that never finishes faults the store
+            // (and the task releases the drive) instead of holding it parked for good.
+            let mut waited = Duration::from_ticks(0);
             while busy() {
+                if waited > PROGRAM_TIMEOUT {
+                    pac::FLASH.cr().modify(|w| w.set_pg(false));
+                    lock();
+                    return Err(FlashError::Timeout);
+                }
                 Timer::after_micros(50).await;
+                waited += Duration::from_micros(50);
             }
             if status_errors() != 0 {
                 break;

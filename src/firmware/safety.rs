@@ -67,9 +67,16 @@ pub fn ticks() -> u32 {
     TICKS.load(Ordering::Relaxed)
 }
 
-/// Reloads both watchdogs (the WWDG only once started).
-pub fn feed_watchdogs() {
-    feed_independent_watchdog();
+/// Counted up by the communication executor's monitor task every 10 ms: its heartbeat.
+pub static COMMS_BEAT: AtomicU32 = AtomicU32::new(0);
+
+/// Reloads both watchdogs (the WWDG only once started): the WWDG on every on-time tick, the
+/// IWDG only while the communication executor is `alive` (its heartbeat as the tick judges it,
+/// `piezo_drive::safety::watchdog::Heartbeat`).
+pub fn feed_watchdogs(comms_alive: bool) {
+    if comms_alive {
+        feed_independent_watchdog();
+    }
     if pac::RCC.apb1enr1().read().wwdgen() {
         // SAFETY: written once by `start_window_watchdog` before the WWDG is enabled.
         let t = unsafe { core::ptr::addr_of!(WWDG_RELOAD).read_volatile() };

@@ -24,3 +24,33 @@ pub fn reload_for(pclk_hz: u32, wdgtb: u8, ewi_after_us: u32) -> Option<u8> {
     let t = u64::from(EWI_COUNT) + counts;
     (t <= u64::from(MAX_COUNT)).then_some(t as u8)
 }
+
+/// The communication executor's heartbeat as the tick sees it. The tick feeds the window
+/// watchdog on every period it runs on time (that one watches the tick), but the independent
+/// watchdog only while this says the executor that runs the UART, the preload reading and the
+/// flash store is alive too: a hung executor then ends in the independent watchdog's reset, with
+/// every pin at its reset state (the amplifier's enable pulled low), instead of an idle
+/// controller holding the enable high with nobody listening.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Heartbeat {
+    last_beat: u32,
+    quiet_ticks: u32,
+}
+
+impl Heartbeat {
+    /// Ticks without a new beat before the executor counts as dead: 30 ms at 10 kHz, three of
+    /// the monitor task's 10 ms beats.
+    pub const STALE_TICKS: u32 = 300;
+
+    /// One tick that reads the executor's beat counter `beat`: whether it is alive (a beat came
+    /// within [`Self::STALE_TICKS`]).
+    pub fn alive(&mut self, beat: u32) -> bool {
+        if beat != self.last_beat {
+            self.last_beat = beat;
+            self.quiet_ticks = 0;
+        } else {
+            self.quiet_ticks = self.quiet_ticks.saturating_add(1);
+        }
+        self.quiet_ticks < Self::STALE_TICKS
+    }
+}
