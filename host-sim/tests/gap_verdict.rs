@@ -9,15 +9,16 @@ use host_sim::motor::params::Params;
 
 /// An amplifier slower than the parameter file says: its two poles at 0.6× the file's bandwidth
 /// (12 instead of 20 kHz), on the sourced plant's 1 kg carriage, the compact grid's 192 rows, 1 %
-/// noise (seed 5), through the CSV `host-sim measure` writes (six decimals: the fits follow last-bit
-/// changes of the data, and in memory the same rows end at R 2.04). The two poles' gain `1/(1 + (f/fc)²)` takes 0.4 % (0.9 kHz), 1.1 % (1.5 kHz)
-/// and 2.0 % (2.1 kHz) more off the drive than the file's; the speed follows the drive
-/// amplitude, so about 0.2, 0.8 and 1.3 % of the no-load speed: a spread of ±0.5 % about its
+/// noise (seed 5), through the CSV `host-sim measure` writes (six decimals: the fits follow
+/// last-bit changes of the data). The two poles' gain `1/(1 + (f/fc)²)` takes 0.4 % (0.9 kHz), 1.0 % (1.5 kHz)
+/// and 1.9 % (2.1 kHz) more off the drive than the file's; the no-load speed falls by less,
+/// 0.2, 0.8 and 1.3 % (the issue's independent simulator): a spread of ±0.5 % about its
 /// mean between the three frequencies. In noise units (1 % of |v| + v̄/4, ≈ 0.8 of a per cent
 /// at the mean speed) over 64 rows a frequency that is χ² ≈ 64·(0.46² + 0.02² + 0.42²) ≈ 25, χ²/dof
-/// ≈ 12, against the noise's limit of about 8.5 (F(2, m) at α = 0.001). R hardly moves (the
-/// other conditions carry none of it): the run ends at R 1.94, below its limit, and the code
-/// before this test said "nothing missing".
+/// ≈ 12 from the amplifier alone, against the noise's limit of about 8.5 (F(2, m) at
+/// α = 0.001). R hardly moves (the other conditions carry none of it): it reads 1.22, below the
+/// fixed 2 that the search used to wait for, and the workflow before this test said "nothing
+/// missing" with frequency χ²/dof 10.1.
 #[test]
 fn structure_along_frequency_beyond_noise_is_never_nothing_missing() {
     let mut base = Params::prototype_sourced();
