@@ -172,14 +172,7 @@ impl TableBuild {
                 let top_v = self.request.max_drive_v.max(0.0);
                 let foot_mm_s = self.request.per_volt.foot_speed_mm_s_per_v.to_num::<f32>() * top_v;
                 self.speed_mm_s = contact_build::speed_table(&top_row, foot_mm_s);
-                self.stage = Stage::Done;
-                Some(ModelTable::assemble(
-                    &self.request,
-                    &self.thrust_n,
-                    self.largest,
-                    self.stall_n,
-                    self.speed_mm_s,
-                ))
+                Some(self.finish())
             }
             Stage::Speed(k) => {
                 let load = self.stall_n * k as f32 / (LOAD_POINTS - 1) as f32;
@@ -192,18 +185,17 @@ impl TableBuild {
                     self.stage = Stage::Speed(k + 1);
                     None
                 } else {
-                    self.stage = Stage::Done;
-                    Some(ModelTable::assemble(
-                        &self.request,
-                        &self.thrust_n,
-                        self.largest,
-                        self.stall_n,
-                        self.speed_mm_s,
-                    ))
+                    Some(self.finish())
                 }
             }
             Stage::Done => None,
         }
+    }
+
+    /// The last slice: the table from what the slices made.
+    fn finish(&mut self) -> ModelTable {
+        self.stage = Stage::Done;
+        ModelTable::assemble(&self.request, &self.thrust_n, self.largest, self.stall_n, self.speed_mm_s)
     }
 
     /// A light carriage: its full-drive speed from its periodic motion, and where that is far
