@@ -215,18 +215,7 @@ mod tests {
     const TRANSCRIPT: &str = include_str!("../../../tests/epics/motorpigcs2_c867.txt");
 
     fn args() -> ServeArgs {
-        ServeArgs {
-            tcp: None,
-            pty: false,
-            verbose: false,
-            preload_n: 16.0,
-            load_n: 0.0,
-            index_um: -20.0,
-            limit_mm: 55.0,
-            store: None,
-            duration_s: None,
-            firmware_params: None,
-        }
+        crate::virtual_controller::serve::test_args()
     }
 
     #[test]

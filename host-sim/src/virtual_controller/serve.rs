@@ -474,6 +474,24 @@ pub fn run(p: &Params, args: &ServeArgs) -> Result<()> {
     bail!("--pty needs a Unix host")
 }
 
+/// The virtual controller's defaults for the crate's tests: no link, 16 N, the index 20 µm
+/// below the start, travel ±55 mm.
+#[cfg(test)]
+pub(crate) fn test_args() -> ServeArgs {
+    ServeArgs {
+        tcp: None,
+        pty: false,
+        verbose: false,
+        preload_n: 16.0,
+        load_n: 0.0,
+        index_um: -20.0,
+        limit_mm: 55.0,
+        store: None,
+        duration_s: None,
+        firmware_params: None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -481,18 +499,7 @@ mod tests {
     use piezo_drive::gcs::{params::PARAMS, REPLY_CAPACITY};
 
     fn args() -> ServeArgs {
-        ServeArgs {
-            tcp: None,
-            pty: false,
-            verbose: false,
-            preload_n: 16.0,
-            load_n: 0.0,
-            index_um: -20.0,
-            limit_mm: 55.0,
-            store: None,
-            duration_s: None,
-            firmware_params: None,
-        }
+        super::test_args()
     }
 
     /// Runs the plant (not paced) until `done` or `max_s` of plant time.
