@@ -832,6 +832,12 @@ impl Controller {
         })
     }
 
+    /// The preload read with the drive quiet ([`RestPreload`]): what a contact model is solved
+    /// at (hosts that build the table from another contact model read it here).
+    pub fn rest_preload_n(&self) -> Option<f32> {
+        self.model.rest_preload.preload_n()
+    }
+
     /// Which model the installed table comes from: None before the first table.
     pub fn table_model(&self) -> Option<TableModelKind> {
         self.model.table().map(|t| {

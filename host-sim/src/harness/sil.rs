@@ -171,30 +171,6 @@ pub fn controller_config(p: &Params) -> ControllerConfig {
     defaults::controller_config_for(&hardware(p))
 }
 
-/// The controller's preload reading with the drive quiet: the static preload the contact model
-/// is solved at. Under drive the force cell reads the stator's mean contact force, which the
-/// contact model itself puts above the static preload where the foot bounces (5.55 N at 5 N,
-/// 1.5 kHz, full drive); a table solved at that reading is solved at the wrong preload.
-#[derive(Debug, Clone, Copy, Default)]
-struct RestPreload {
-    quiet_periods: u32,
-    preload_n: Option<f32>,
-}
-
-impl RestPreload {
-    /// Quiet periods before the reading counts as static: five of the force-cell filter's time
-    /// constants at its default coefficient 0.01 per period.
-    const SETTLED_PERIODS: u32 = 500;
-
-    fn note(&mut self, c: &Controller) {
-        let quiet = c.drive_voltage_v() == 0.0;
-        self.quiet_periods = if quiet { self.quiet_periods.saturating_add(1) } else { 0 };
-        if quiet && (self.preload_n.is_none() || self.quiet_periods >= Self::SETTLED_PERIODS) {
-            self.preload_n = c.preload_n().or(self.preload_n);
-        }
-    }
-}
-
 /// Controller + plant, advanced one control period at a time.
 pub struct Sil {
     pub plant: Plant,
@@ -224,7 +200,6 @@ pub struct Sil {
     pub last_step_ns: u64,
     /// Where the controller's model table comes from (the core's own build unless told).
     pub table_model: TableModel,
-    rest_preload: RestPreload,
 }
 
 impl Sil {
@@ -250,7 +225,6 @@ impl Sil {
             last_slider_m: 0.0,
             last_step_ns: 0,
             table_model: TableModel::Core,
-            rest_preload: RestPreload::default(),
         })
     }
 
@@ -291,9 +265,8 @@ impl Sil {
         match &self.table_model {
             TableModel::Core | TableModel::CoreContact => self.controller.background(),
             TableModel::Contact(p) => {
-                self.rest_preload.note(&self.controller);
                 if let Some(r) = self.controller.model_request() {
-                    let static_n = self.rest_preload.preload_n.unwrap_or(r.preload_n);
+                    let static_n = self.controller.rest_preload_n().unwrap_or(r.preload_n);
                     self.controller.install_model(contact_table(p, &r, static_n));
                 }
             }
